@@ -1,0 +1,76 @@
+//! Colour: sRGB transfer functions and luminance, in linear Rec.709 RGB.
+
+use glam::Vec3;
+
+/// The sRGB electro-optical transfer function: an encoded value in [0, 1] to linear.
+#[inline]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The inverse of [`srgb_to_linear`]: a linear value to sRGB encoding (input clamped to [0, 1]).
+#[inline]
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Table of [`srgb_to_linear`] for every 8-bit code value.
+pub fn srgb8_to_linear_table() -> &'static [f32; 256] {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)))
+}
+
+/// Decodes an 8-bit sRGB code value to linear.
+#[inline]
+pub fn srgb8_to_linear(c: u8) -> f32 {
+    srgb8_to_linear_table()[c as usize]
+}
+
+/// Encodes a linear value as an 8-bit sRGB code value (rounded to nearest).
+#[inline]
+pub fn linear_to_srgb8(c: f32) -> u8 {
+    (linear_to_srgb(c) * 255.0 + 0.5) as u8
+}
+
+/// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips_every_code_value() {
+        for i in 0..=255u8 {
+            assert_eq!(linear_to_srgb8(srgb8_to_linear(i)), i);
+        }
+    }
+
+    #[test]
+    fn srgb_matches_published_values() {
+        // IEC 61966-2-1: code 128 is 0.2158605 linear, 188 is ~0.5029.
+        assert!((srgb8_to_linear(128) - 0.215_860_5).abs() < 1e-6);
+        assert!((srgb8_to_linear(188) - 0.502_886).abs() < 1e-5);
+        assert_eq!(srgb8_to_linear(0), 0.0);
+        assert_eq!(srgb8_to_linear(255), 1.0);
+        // The linear segment.
+        assert!((srgb_to_linear(0.04) - 0.04 / 12.92).abs() < 1e-9);
+    }
+
+    #[test]
+    fn luminance_of_white_is_one() {
+        assert!((luminance(Vec3::ONE) - 1.0).abs() < 1e-6);
+    }
+}

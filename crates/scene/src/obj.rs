@@ -1,0 +1,10 @@
+//! OBJ/MTL loader (in progress).
+use std::path::Path;
+
+use crate::error::{Result, SceneError};
+use crate::limits::Limits;
+use crate::scene::Scene;
+
+pub fn load(path: &Path, _limits: &Limits) -> Result<Scene> {
+    Err(SceneError::new(path, "OBJ loading is not written yet"))
+}
