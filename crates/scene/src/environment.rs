@@ -30,8 +30,21 @@ pub struct Environment {
 
 impl Environment {
     /// Loads an equirectangular `.hdr` or `.exr` file. Negative, NaN and infinite texels are set
-    /// to 0 with a warning count in the log.
+    /// to 0 with a warning in the log.
     pub fn load(
+        path: &Path,
+        rotation_degrees: f32,
+        intensity: f32,
+        limits: &Limits,
+    ) -> Result<Self> {
+        let bytes = read_file_limited(path, limits.max_file_bytes)?;
+        Self::decode(&bytes, path, rotation_degrees, intensity, limits)
+    }
+
+    /// Decodes `.hdr` or `.exr` bytes; `path` gives the format (by extension) and names the
+    /// file in messages.
+    pub fn decode(
+        bytes: &[u8],
         path: &Path,
         rotation_degrees: f32,
         intensity: f32,
@@ -59,8 +72,7 @@ impl Environment {
                 ))
             }
         };
-        let bytes = read_file_limited(path, limits.max_file_bytes)?;
-        let reader = || ImageReader::with_format(std::io::Cursor::new(&bytes[..]), format);
+        let reader = || ImageReader::with_format(std::io::Cursor::new(bytes), format);
         let (width, height) = reader()
             .into_dimensions()
             .map_err(|e| SceneError::new(path, format!("not a valid {ext} image: {e}")))?;

@@ -196,6 +196,21 @@ impl Material {
         (self.specular_color * (r * r)).min(Vec3::ONE) * self.specular
     }
 
+    /// Calls `f` on every texture slot of the material (used or not).
+    pub fn for_each_texture_slot(&mut self, mut f: impl FnMut(&mut Option<TextureRef>)) {
+        f(&mut self.base_color_texture);
+        f(&mut self.metallic_roughness_texture);
+        f(&mut self.specular_texture);
+        f(&mut self.specular_color_texture);
+        f(&mut self.normal_texture);
+        f(&mut self.occlusion_texture);
+        f(&mut self.emissive_texture);
+        f(&mut self.transmission_texture);
+        if let Some(v) = &mut self.volume {
+            f(&mut v.thickness_texture);
+        }
+    }
+
     /// Every texture the material uses, with the slot's name.
     pub fn texture_refs(&self) -> Vec<(&'static str, TextureRef)> {
         [

@@ -29,6 +29,8 @@ pub struct Scene {
     pub cameras: Vec<Camera>,
     /// Everything the load warned about, "file: message".
     pub warnings: Vec<String>,
+    /// Triangles the loader dropped (non-finite corners or zero area), counted per mesh.
+    pub dropped_triangles: u64,
 }
 
 /// Counts for `pathlight info`.
@@ -38,6 +40,8 @@ pub struct SceneStats {
     pub triangles: u64,
     /// Triangles stored once per mesh.
     pub unique_triangles: u64,
+    /// Triangles the file holds that were dropped as degenerate or non-finite.
+    pub dropped_triangles: u64,
     pub vertices: u64,
     pub meshes: usize,
     pub instances: usize,
@@ -151,6 +155,7 @@ impl Scene {
         SceneStats {
             triangles: self.triangle_count(),
             unique_triangles: self.meshes.iter().map(|m| m.indices.len() as u64).sum(),
+            dropped_triangles: self.dropped_triangles,
             vertices: self.meshes.iter().map(|m| m.positions.len() as u64).sum(),
             meshes: self.meshes.len(),
             instances: self.instances.len(),
