@@ -1,1 +1,104 @@
-fn main() {}
+//! `pathlight`: the command-line front end of the path tracer.
+//!
+//! One subcommand per job. Today only `info` exists; `render`, `view`, `play`, `bench` and `eval`
+//! will slot in as further [`Command`] variants, each flattening the shared [`SceneArgs`] so that
+//! every command loads scenes the same way.
+//!
+//! Exit codes: 0 on success, 2 on any error (a usage error reported by clap, or a failed command,
+//! printed to stderr as `error: <message>`).
+
+mod info;
+mod memory;
+mod scene_args;
+
+use std::io::Write;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+pub use scene_args::SceneArgs;
+
+/// pathlight: a real-time CPU path tracer.
+#[derive(Debug, Parser)]
+#[command(name = "pathlight", version, about, propagate_version = true)]
+pub struct Cli {
+    /// More log output on stderr: -v for info, -vv for debug, -vvv for trace (warnings are
+    /// always shown; RUST_LOG overrides this).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Load a scene and print its statistics (counts, bounds, load time, peak memory).
+    Info(info::InfoArgs),
+}
+
+fn init_logging(verbose: u8) {
+    let level = match verbose {
+        0 => "warn",
+        1 => "info",
+        2 => "debug",
+        _ => "trace",
+    };
+    let show_target = verbose >= 2;
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
+        .format(move |buf, record| {
+            let level = match record.level() {
+                log::Level::Error => "error",
+                log::Level::Warn => "warning",
+                log::Level::Info => "info",
+                log::Level::Debug => "debug",
+                log::Level::Trace => "trace",
+            };
+            if show_target {
+                writeln!(buf, "{level} [{}]: {}", record.target(), record.args())
+            } else {
+                writeln!(buf, "{level}: {}", record.args())
+            }
+        })
+        .init();
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Info(args) => info::run(&args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.verbose);
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // `{:#}` prints the whole context chain on one line; a SceneError already names the
+            // file at fault.
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn verbose_is_global() {
+        let cli = Cli::try_parse_from(["pathlight", "info", "-vv", "--json"]).unwrap();
+        assert_eq!(cli.verbose, 2);
+        let Command::Info(args) = cli.command;
+        assert!(args.json);
+        assert!(args.scene.scene.is_none());
+    }
+}

@@ -87,6 +87,8 @@ impl Environment {
             .decode()
             .map_err(|e| SceneError::new(path, format!("cannot decode the {ext} image: {e}")))?
             .into_rgb32f();
+        // The decoded size, not the header's, describes `texels`.
+        let (width, height) = decoded.dimensions();
         let mut bad = 0usize;
         let texels = decoded
             .as_raw()

@@ -208,13 +208,9 @@ fn downsample(src: &MipLevel, color_space: ColorSpace) -> MipLevel {
     }
 }
 
-/// Decodes a PNG or JPEG image to 8-bit RGBA, refusing images over `max_pixels` before any
-/// pixel memory is allocated. `file` names the image (or the scene file holding it) in errors.
-pub fn decode_image(
-    bytes: &[u8],
-    file: &Path,
-    max_pixels: u64,
-) -> Result<(u32, u32, Vec<[u8; 4]>)> {
+/// The format and the size (width, height) that a PNG or JPEG image declares in its header,
+/// read without decoding any pixel.
+pub fn image_header(bytes: &[u8], file: &Path) -> Result<(image::ImageFormat, u32, u32)> {
     use image::{ImageFormat, ImageReader};
     let fail = |what: String| SceneError::new(file, what);
     let format =
@@ -224,10 +220,23 @@ pub fn decode_image(
             "is a {format:?} image; textures must be PNG or JPEG"
         )));
     }
-    let reader = || ImageReader::with_format(std::io::Cursor::new(bytes), format);
-    let (w, h) = reader()
+    let (w, h) = ImageReader::with_format(std::io::Cursor::new(bytes), format)
         .into_dimensions()
         .map_err(|e| fail(format!("is not a valid image: {e}")))?;
+    Ok((format, w, h))
+}
+
+/// Decodes a PNG or JPEG image to 8-bit RGBA, refusing images over `max_pixels` before any
+/// pixel memory is allocated. `file` names the image (or the scene file holding it) in errors.
+pub fn decode_image(
+    bytes: &[u8],
+    file: &Path,
+    max_pixels: u64,
+) -> Result<(u32, u32, Vec<[u8; 4]>)> {
+    use image::ImageReader;
+    let fail = |what: String| SceneError::new(file, what);
+    let (format, w, h) = image_header(bytes, file)?;
+    let reader = || ImageReader::with_format(std::io::Cursor::new(bytes), format);
     check_pixels(file, w, h, max_pixels)?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(w);
@@ -240,6 +249,8 @@ pub fn decode_image(
         .decode()
         .map_err(|e| fail(format!("cannot decode the image: {e}")))?;
     let rgba = img.into_rgba8();
+    // The decoded size, not the header's: `Texture::new` asserts they match the texel count.
+    let (w, h) = rgba.dimensions();
     let texels = rgba
         .as_raw()
         .chunks_exact(4)

@@ -26,7 +26,9 @@ fn gradient() -> image::Rgb32FImage {
 fn round_trip(ext: &str) {
     let dir = temp_dir(ext);
     let path = dir.join(format!("g.{ext}"));
-    image::DynamicImage::ImageRgb32F(gradient()).save(&path).unwrap();
+    image::DynamicImage::ImageRgb32F(gradient())
+        .save(&path)
+        .unwrap();
     let env = Environment::load(&path, 90.0, 2.0, &Limits::default()).unwrap();
     assert_eq!((env.width, env.height), (8, 4));
     assert!((env.rotation - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
@@ -37,7 +39,10 @@ fn round_trip(ext: &str) {
     for (i, t) in env.texels.iter().enumerate() {
         let e = Vec3::from_slice(&expect.as_raw()[3 * i..3 * i + 3]);
         let scale = e.max_element().max(1e-3);
-        assert!(((*t - e).abs() / scale).max_element() <= tol, "{ext} texel {i}: {t} vs {e}");
+        assert!(
+            ((*t - e).abs() / scale).max_element() <= tol,
+            "{ext} texel {i}: {t} vs {e}"
+        );
     }
     // radiance() looks up the texel seen in a direction, times intensity.
     let uv = glam::Vec2::new(5.5 / 8.0, 1.5 / 4.0);
@@ -73,7 +78,11 @@ fn shared_hdris_load() {
             let env = Environment::load(&p, 0.0, 1.0, &Limits::default()).unwrap();
             assert_eq!((env.width, env.height), (1024, 512), "{}", p.display());
             let mean: Vec3 = env.texels.iter().copied().sum::<Vec3>() / env.texels.len() as f32;
-            assert!(mean.min_element() > 0.0 && mean.is_finite(), "{}: mean {mean}", p.display());
+            assert!(
+                mean.min_element() > 0.0 && mean.is_finite(),
+                "{}: mean {mean}",
+                p.display()
+            );
             n += 1;
         }
     }

@@ -203,10 +203,17 @@ impl<'a> AccessorReader<'a> {
         if dim < N {
             fill[dim..].fill(1.0);
         }
+        // Check that the data fits before allocating `count` elements: a hostile count with a
+        // tiny buffer must be refused without allocating gigabytes.
+        let layout = match acc.buffer_view {
+            Some(view) => {
+                let offset = acc.byte_offset.map_or(0, |o| o.0);
+                Some(self.layout(index, view.value(), offset, count as u64, elem, true)?)
+            }
+            None => None,
+        };
         let mut out = vec![fill; count];
-        if let Some(view) = acc.buffer_view {
-            let offset = acc.byte_offset.map_or(0, |o| o.0);
-            let l = self.layout(index, view.value(), offset, count as u64, elem, true)?;
+        if let Some(l) = layout {
             for (i, v) in out.iter_mut().enumerate() {
                 let e = &l.bytes[i * l.stride..i * l.stride + l.elem];
                 for (k, slot) in v.iter_mut().enumerate().take(dim.min(N)) {

@@ -116,7 +116,7 @@ impl Buffers {
         })?;
         let offset = view.byte_offset.map_or(0, |o| o.0);
         let length = view.byte_length.0;
-        let end = offset.checked_add(length).unwrap_or(u64::MAX);
+        let end = offset.saturating_add(length);
         if end > bytes.len() as u64 {
             return Err(SceneError::new(
                 file,

@@ -100,7 +100,7 @@ pub fn parse<'a>(bytes: &'a [u8], file: &Path) -> Result<Glb<'a>> {
 pub fn write(json: &[u8], bin: Option<&[u8]>) -> Vec<u8> {
     let pad = |v: &[u8], fill: u8| {
         let mut v = v.to_vec();
-        while v.len() % 4 != 0 {
+        while v.len() & 3 != 0 {
             v.push(fill);
         }
         v
@@ -141,7 +141,7 @@ mod tests {
         let f = write(b"{}", Some(&[1, 2, 3, 4]));
         // Truncated file.
         for cut in [0, 5, 11, 12, 20, f.len() - 1] {
-            let e = parse(&f[..cut], Path::new("a.glb")).err().expect("refused");
+            let e = parse(&f[..cut], Path::new("a.glb")).expect_err("refused");
             assert!(e.to_string().starts_with("a.glb: invalid GLB"), "{e}");
         }
         // Header length larger than the file, or absurd.

@@ -17,8 +17,9 @@
 //! with a specular layer scales it by `1 - F(view)`: equal at normal incidence for grey F0,
 //! close elsewhere.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use ::gltf::json;
 use glam::{Vec2, Vec3, Vec4};
@@ -30,7 +31,7 @@ use crate::error::{SceneError, Warnings};
 use crate::limits::Limits;
 use crate::material::{uv_transform, AlphaMode, Material, Sampler, TextureRef, Volume, Wrap};
 use crate::source::SceneSource;
-use crate::texture::{decode_image, ColorSpace, Texture};
+use crate::texture::{check_pixels, decode_image, image_header, ColorSpace, Texture};
 
 /// A change made to an image's texels before it becomes a texture.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -47,6 +48,14 @@ struct Request {
     image: usize,
     color_space: ColorSpace,
     derivation: Derivation,
+}
+
+/// The bytes of an image to decode, the file they came from and the size its header declares.
+struct Fetched<'b> {
+    bytes: Cow<'b, [u8]>,
+    from: PathBuf,
+    width: u32,
+    height: u32,
 }
 
 /// Converts materials, collecting the textures they need, then decodes those in parallel.
@@ -301,29 +310,44 @@ impl<'a> MaterialConverter<'a> {
         limits: &Limits,
         warnings: &mut Warnings,
     ) -> Vec<Texture> {
-        let decoded: Vec<Result<Texture, SceneError>> = self
+        let fetched: Vec<Result<Fetched, SceneError>> = self
             .requests
             .par_iter()
-            .map(|r| self.decode(r, buffers, source, limits))
+            .map(|r| self.fetch(r, buffers, source, limits))
+            .collect();
+        // Admit the images against the limit on all texture pixels by their headers, in request
+        // order, before decoding any: a small file of many highly compressed large images must
+        // not be decoded (up to gigabytes each) only to be dropped afterwards.
+        let mut total_pixels = 0u64;
+        let admitted: Vec<Result<Fetched, SceneError>> = self
+            .requests
+            .iter()
+            .zip(fetched)
+            .map(|(r, f)| {
+                let f = f?;
+                total_pixels = total_pixels.saturating_add(f.width as u64 * f.height as u64);
+                if total_pixels > limits.max_total_texture_pixels {
+                    return Err(SceneError::new(
+                        self.file,
+                        format!(
+                            "image {}: the textures exceed the limit of {} pixels in all",
+                            r.image, limits.max_total_texture_pixels
+                        ),
+                    ));
+                }
+                Ok(f)
+            })
+            .collect();
+        let decoded: Vec<Result<Texture, SceneError>> = admitted
+            .into_par_iter()
+            .zip(self.requests.par_iter())
+            .map(|(f, r)| f.and_then(|f| self.decode(r, f, limits)))
             .collect();
         let mut textures = Vec::new();
-        let mut total_pixels = 0u64;
         let mut final_id = Vec::with_capacity(decoded.len());
-        for (r, d) in self.requests.iter().zip(decoded) {
+        for d in decoded {
             match d {
                 Ok(t) => {
-                    total_pixels += t.width() as u64 * t.height() as u64;
-                    if total_pixels > limits.max_total_texture_pixels {
-                        warnings.push(
-                            self.file,
-                            format!(
-                                "image {}: textures exceed the limit of {} pixels in all; dropped",
-                                r.image, limits.max_total_texture_pixels
-                            ),
-                        );
-                        final_id.push(None);
-                        continue;
-                    }
                     final_id.push(Some(textures.len() as u32));
                     textures.push(t);
                 }
@@ -349,47 +373,63 @@ impl<'a> MaterialConverter<'a> {
         textures
     }
 
-    fn decode(
+    /// Reads the bytes of a requested image and the size its header declares.
+    fn fetch<'b>(
         &self,
         r: &Request,
-        buffers: &Buffers,
+        buffers: &'b Buffers,
         source: &SceneSource,
         limits: &Limits,
-    ) -> Result<Texture, SceneError> {
+    ) -> Result<Fetched<'b>, SceneError> {
         let image = &self.root.images[r.image];
         let what = |p: &str| format!("image {}: {p}", r.image);
-        let (bytes, from): (std::borrow::Cow<[u8]>, std::path::PathBuf) =
-            match (&image.uri, image.buffer_view) {
-                (Some(uri), _) => match decode_data_uri(uri, self.file) {
-                    Some(b) => (b?.into(), self.file.to_path_buf()),
-                    None => {
-                        let path = resolve_uri(source, self.file, uri)
-                            .map_err(|e| SceneError::new(&e.file, what(&e.problem)))?;
-                        (source.read(&path, limits.max_file_bytes)?.into(), path)
-                    }
-                },
-                (None, Some(view)) => (
-                    buffers.view(self.root, view.value(), self.file)?.into(),
-                    self.file.to_path_buf(),
-                ),
-                (None, None) => {
-                    return Err(SceneError::new(
-                        self.file,
-                        what("has neither a URI nor a bufferView"),
-                    ))
+        let (bytes, from): (Cow<[u8]>, PathBuf) = match (&image.uri, image.buffer_view) {
+            (Some(uri), _) => match decode_data_uri(uri, self.file) {
+                Some(b) => (b?.into(), self.file.to_path_buf()),
+                None => {
+                    let path = resolve_uri(source, self.file, uri)
+                        .map_err(|e| SceneError::new(&e.file, what(&e.problem)))?;
+                    (source.read(&path, limits.max_file_bytes)?.into(), path)
                 }
-            };
-        let (w, h, mut texels) =
-            decode_image(&bytes, &from, limits.max_texture_pixels).map_err(|e| {
-                SceneError::new(
-                    &e.file,
-                    if from == self.file {
-                        what(&e.problem)
-                    } else {
-                        e.problem
-                    },
-                )
-            })?;
+            },
+            (None, Some(view)) => (
+                buffers.view(self.root, view.value(), self.file)?.into(),
+                self.file.to_path_buf(),
+            ),
+            (None, None) => {
+                return Err(SceneError::new(
+                    self.file,
+                    what("has neither a URI nor a bufferView"),
+                ))
+            }
+        };
+        let (_, width, height) = image_header(&bytes, &from)
+            .and_then(|(f, w, h)| {
+                check_pixels(&from, w, h, limits.max_texture_pixels).map(|_| (f, w, h))
+            })
+            .map_err(|e| self.name(r, &from, e))?;
+        Ok(Fetched {
+            bytes,
+            from,
+            width,
+            height,
+        })
+    }
+
+    /// An image error, saying which image when the file named is the scene file itself.
+    fn name(&self, r: &Request, from: &Path, e: SceneError) -> SceneError {
+        if from == self.file {
+            SceneError::new(&e.file, format!("image {}: {}", r.image, e.problem))
+        } else {
+            e
+        }
+    }
+
+    /// Decodes a fetched image into a texture.
+    fn decode(&self, r: &Request, f: Fetched, limits: &Limits) -> Result<Texture, SceneError> {
+        let image = &self.root.images[r.image];
+        let (w, h, mut texels) = decode_image(&f.bytes, &f.from, limits.max_texture_pixels)
+            .map_err(|e| self.name(r, &f.from, e))?;
         if let Derivation::GlossToRoughness { factor_bits } = r.derivation {
             let g = f32::from_bits(factor_bits);
             for t in &mut texels {
@@ -480,7 +520,7 @@ fn sanitize(m: &mut Material, file: &Path, warnings: &mut Warnings) {
             fixed.push(format!("thickness {}", v.thickness));
             v.thickness = 0.0;
         }
-        if !(v.attenuation_distance > 0.0) {
+        if v.attenuation_distance.is_nan() || v.attenuation_distance <= 0.0 {
             fixed.push(format!("attenuation distance {}", v.attenuation_distance));
             v.attenuation_distance = f32::INFINITY;
         }

@@ -56,6 +56,24 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
 /// Loads a `.gltf` or `.glb` file.
 pub fn load(path: &Path, limits: &Limits) -> Result<Scene> {
     let bytes = read_file_limited(path, limits.max_file_bytes)?;
+    let is_glb_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    // A `.glb` that does not start with the magic is reported as a broken GLB (truncated, or not
+    // a GLB at all) rather than as unparsable JSON; a JSON document named `.glb` still loads.
+    if is_glb_name && !glb::is_glb(&bytes) && bytes.trim_ascii_start().first() != Some(&b'{') {
+        return Err(SceneError::new(
+            path,
+            if bytes.is_empty() {
+                "invalid GLB: the file is empty".to_string()
+            } else {
+                format!(
+                    "invalid GLB: it does not start with the magic \"glTF\" ({} bytes; truncated, or not a GLB file)",
+                    bytes.len()
+                )
+            },
+        ));
+    }
     let source = SceneSource::for_file(path)?;
     parse(&bytes, path, &source, limits)
 }
@@ -68,6 +86,16 @@ pub fn parse(bytes: &[u8], file: &Path, source: &SceneSource, limits: &Limits) -
     } else {
         (bytes, None)
     };
+    if json_bytes.trim_ascii().is_empty() {
+        return Err(SceneError::new(
+            file,
+            if glb::is_glb(bytes) {
+                "invalid GLB: the JSON chunk is empty"
+            } else {
+                "the file is empty"
+            },
+        ));
+    }
     let root: json::Root = serde_json::from_slice(json_bytes)
         .map_err(|e| SceneError::new(file, format!("invalid glTF JSON: {e}")))?;
     check_extensions(&root, file)?;
@@ -99,17 +127,38 @@ pub fn parse(bytes: &[u8], file: &Path, source: &SceneSource, limits: &Limits) -
     used_meshes.sort_unstable();
     used_meshes.dedup();
     let mut unique_triangles = 0u64;
+    // Every primitive reads its whole POSITION accessor, even when many primitives share one
+    // large accessor: bound the total, or a small file could make the loader read the same
+    // megabytes thousands of times.
+    let mut vertices_read = 0u64;
     for &m in &used_meshes {
         for p in &root.meshes[m].primitives {
+            if let Some(pos) = p
+                .attributes
+                .get(&Checked::Valid(json::mesh::Semantic::Positions))
+            {
+                vertices_read = vertices_read.saturating_add(reader.count(pos.value())?);
+            }
+            // Saturating: hostile counts near u64::MAX must not overflow the sum.
             if let Some(i) = p.indices {
-                unique_triangles += reader.count(i.value())? / 3;
+                unique_triangles = unique_triangles.saturating_add(reader.count(i.value())? / 3);
             } else if let Some(pos) = p
                 .attributes
                 .get(&Checked::Valid(json::mesh::Semantic::Positions))
             {
-                unique_triangles += reader.count(pos.value())? / 3;
+                unique_triangles = unique_triangles.saturating_add(reader.count(pos.value())? / 3);
             }
         }
+    }
+    if vertices_read > reader.max_count {
+        return Err(SceneError::new(
+            file,
+            format!(
+                "the mesh primitives read {vertices_read} vertices in all (an accessor shared by \
+                 several primitives counts once for each), over the limit of {}",
+                reader.max_count
+            ),
+        ));
     }
     if unique_triangles > limits.max_triangles {
         return Err(SceneError::new(
@@ -120,7 +169,8 @@ pub fn parse(bytes: &[u8], file: &Path, source: &SceneSource, limits: &Limits) -
             ),
         ));
     }
-    let converted: Vec<Result<(Vec<Option<Mesh>>, Warnings, Dropped)>> = used_meshes
+    type Converted = Result<(Vec<Option<Mesh>>, Warnings, Dropped)>;
+    let converted: Vec<Converted> = used_meshes
         .par_iter()
         .map(|&m| {
             let mut w = Warnings::default();
@@ -129,7 +179,7 @@ pub fn parse(bytes: &[u8], file: &Path, source: &SceneSource, limits: &Limits) -
                 .primitives
                 .iter()
                 .enumerate()
-                .map(|(p, prim)| convert_primitive(&reader, m, p, prim, &mut w, &mut d))
+                .map(|(p, prim)| convert_primitive(&reader, limits, m, p, prim, &mut w, &mut d))
                 .collect::<Result<Vec<_>>>()?;
             Ok((prims, w, d))
         })
@@ -260,6 +310,31 @@ fn check_extensions(root: &json::Root, file: &Path) -> Result<()> {
 
 /// Checks every reference between objects (dangling indices) and every enumerated value.
 fn validate(root: &json::Root, file: &Path) -> Result<()> {
+    // gltf-json's primitive validation indexes `accessors` with the POSITION accessor without
+    // a bounds check (gltf-json 1.4.1, mesh.rs), so a dangling POSITION would panic there:
+    // report those first and do not call it.
+    let mut dangling = Vec::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let pos = prim
+                .attributes
+                .get(&Checked::Valid(json::mesh::Semantic::Positions))
+                .map(|a| a.value());
+            if let Some(pos) = pos.filter(|&a| a >= root.accessors.len()) {
+                dangling.push(format!(
+                    "meshes[{m}].primitives[{p}].attributes[\"POSITION\"]: Index out of bounds \
+                     (accessor {pos} of {})",
+                    root.accessors.len()
+                ));
+            }
+        }
+    }
+    if !dangling.is_empty() {
+        return Err(SceneError::new(
+            file,
+            format!("invalid glTF: {}", dangling.join("; ")),
+        ));
+    }
     let mut errors = Vec::new();
     root.validate(root, json::Path::new, &mut |path, error| {
         let path = path().to_string();
@@ -428,6 +503,7 @@ fn is_invertible(m: &Mat4) -> bool {
 /// Reads one primitive into a mesh (material set later). `None` for skipped primitives.
 fn convert_primitive(
     reader: &AccessorReader,
+    limits: &Limits,
     mesh: usize,
     prim_index: usize,
     prim: &json::mesh::Primitive,
@@ -456,14 +532,27 @@ fn convert_primitive(
         warnings.push(file, format!("{here}: no POSITION attribute; skipped"));
         return Ok(None);
     };
+    let vertex_count = reader.count(pos)?;
+    if vertex_count > limits.max_vertices {
+        return Err(SceneError::new(
+            file,
+            format!(
+                "{here}: {vertex_count} vertices, over the limit of {} vertices per mesh",
+                limits.max_vertices
+            ),
+        ));
+    }
     let positions: Vec<Vec3> = reader
         .read_floats::<3>(pos, &[Type::Vec3], false)?
         .into_iter()
         .map(Vec3::from)
         .collect();
     let n = positions.len();
-    let check_len = |name: &str, len: usize| {
-        if len == n {
+    // Checked on the accessor's count before it is read, so that a hostile count on a
+    // secondary attribute is refused before anything of its size is allocated.
+    let check_len = |name: &str, a: usize| {
+        let len = reader.count(a)?;
+        if len == n as u64 {
             Ok(())
         } else {
             Err(SceneError::new(
@@ -474,24 +563,24 @@ fn convert_primitive(
     };
     let normals = match attr(Semantic::Normals) {
         Some(a) => {
+            check_len("NORMAL", a)?;
             let v: Vec<Vec3> = reader
                 .read_floats::<3>(a, &[Type::Vec3], false)?
                 .into_iter()
                 .map(Vec3::from)
                 .collect();
-            check_len("NORMAL", v.len())?;
             Some(v)
         }
         None => None,
     };
     let tangents = match attr(Semantic::Tangents) {
         Some(a) if normals.is_some() => {
+            check_len("TANGENT", a)?;
             let v: Vec<Vec4> = reader
                 .read_floats::<4>(a, &[Type::Vec4], false)?
                 .into_iter()
                 .map(Vec4::from)
                 .collect();
-            check_len("TANGENT", v.len())?;
             Some(v)
         }
         _ => None, // glTF: without normals, tangents are ignored.
@@ -499,12 +588,12 @@ fn convert_primitive(
     let uv = |set: u32| -> Result<Option<Vec<Vec2>>> {
         match attr(Semantic::TexCoords(set)) {
             Some(a) => {
+                check_len(&format!("TEXCOORD_{set}"), a)?;
                 let v: Vec<Vec2> = reader
                     .read_floats::<2>(a, &[Type::Vec2], true)?
                     .into_iter()
                     .map(Vec2::from)
                     .collect();
-                check_len(&format!("TEXCOORD_{set}"), v.len())?;
                 Ok(Some(v))
             }
             None => Ok(None),
@@ -514,12 +603,12 @@ fn convert_primitive(
     let uv1 = uv(1)?;
     let colors = match attr(Semantic::Colors(0)) {
         Some(a) => {
+            check_len("COLOR_0", a)?;
             let v: Vec<Vec4> = reader
                 .read_floats::<4>(a, &[Type::Vec3, Type::Vec4], true)?
                 .into_iter()
                 .map(Vec4::from)
                 .collect();
-            check_len("COLOR_0", v.len())?;
             Some(v)
         }
         None => None,
@@ -537,6 +626,32 @@ fn convert_primitive(
         }
         None => (0..n as u32).collect(),
     };
+    let what = if prim.indices.is_some() {
+        "indices"
+    } else {
+        "vertices"
+    };
+    if indices.len() < 3 {
+        warnings.push(
+            file,
+            format!(
+                "{here}: {mode:?} primitive of {} {what}, fewer than 3: no triangle; skipped",
+                indices.len()
+            ),
+        );
+        return Ok(None);
+    }
+    let trailing = indices.len() % 3;
+    if mode == Mode::Triangles && trailing != 0 {
+        warnings.push(
+            file,
+            format!(
+                "{here}: {} {what} is not a multiple of 3; the last {} are ignored",
+                indices.len(),
+                trailing
+            ),
+        );
+    }
     let triangles: Vec<[u32; 3]> = match mode {
         Mode::Triangles => indices
             .chunks_exact(3)
