@@ -3,11 +3,16 @@
 //! batches.
 
 pub mod brute;
+mod bvh;
 pub mod geometry;
+pub mod native;
 pub mod ray;
+mod simd;
+pub mod triangle;
 
 pub use brute::BruteForce;
 pub use geometry::SceneTriangles;
+pub use native::{BuildStats, Isa, NativeBvh};
 pub use ray::{Hit, Ray};
 
 /// An acceleration structure over the triangles of a scene.

@@ -1,0 +1,684 @@
+//! The native BVH against the brute-force reference, on every instruction set this CPU has.
+//!
+//! Agreement: both miss, or both hit the same triangle at (nearly) the same distance, or hit
+//! different triangles at distances within `1e-4 * max(1, |t|)` (near-ties). Misses must agree
+//! exactly on random rays; the grazing cases count their disagreements and bound them.
+
+use std::path::PathBuf;
+
+use glam::{Mat3, Vec3};
+use pathlight_accel::{Accel, BruteForce, Isa, NativeBvh, Ray, SceneTriangles};
+
+/// SplitMix64.
+struct Rng(u64);
+
+impl Rng {
+    fn u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    fn f(&mut self) -> f32 {
+        (self.u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f()
+    }
+    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
+        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+    }
+    fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = self.vec(-1.0, 1.0);
+            let l = v.length_squared();
+            if l > 1e-4 && l <= 1.0 {
+                return v / l.sqrt();
+            }
+        }
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.u64() % n as u64) as usize
+    }
+}
+
+fn soup(tris: Vec<[Vec3; 3]>) -> SceneTriangles {
+    let ids = (0..tris.len() as u32).map(|i| (i / 7, i)).collect();
+    SceneTriangles { corners: tris, ids }
+}
+
+/// `n` random triangles of size up to `size` in the cube [-1, 1]^3.
+fn random_soup(rng: &mut Rng, n: usize, size: f32) -> Vec<[Vec3; 3]> {
+    (0..n)
+        .map(|_| {
+            let c = rng.vec(-1.0, 1.0);
+            [c, c + rng.unit() * size, c + rng.unit() * size]
+        })
+        .collect()
+}
+
+/// A random point inside triangle `t`.
+fn point_in(rng: &mut Rng, t: &[Vec3; 3]) -> Vec3 {
+    let (mut a, mut b) = (rng.f(), rng.f());
+    if a + b > 1.0 {
+        a = 1.0 - a;
+        b = 1.0 - b;
+    }
+    t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b
+}
+
+/// Rays from around the soup: half in random directions, half aimed at a random triangle.
+fn random_rays(rng: &mut Rng, tris: &[[Vec3; 3]], n: usize, extent: f32) -> Vec<Ray> {
+    (0..n)
+        .map(|i| {
+            let o = rng.vec(-extent, extent);
+            let d = if i % 2 == 0 || tris.is_empty() {
+                rng.unit()
+            } else {
+                let k = rng.below(tris.len());
+                point_in(rng, &tris[k]) - o
+            };
+            let mut r = Ray::new(o, d);
+            if i % 5 == 1 {
+                r.t_max = rng.range(0.0, 2.0);
+            }
+            if i % 7 == 2 {
+                r.t_min = rng.range(0.0, 0.5);
+            }
+            r
+        })
+        .collect()
+}
+
+#[derive(Default, Debug)]
+struct Tally {
+    rays: usize,
+    hits: usize,
+    /// One hit and the other missed.
+    miss_mismatch: usize,
+    /// Different triangles at clearly different distances.
+    wrong: usize,
+}
+
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= 1e-4 * a.abs().max(1.0)
+}
+
+/// |cos| of the angle between the ray and the triangle's normal, in f64.
+fn cosine(ray: &Ray, t: &[Vec3; 3]) -> f64 {
+    let [a, b, c] = t.map(|p| p.as_dvec3());
+    let n = (b - a).cross(c - a).normalize();
+    n.dot(ray.direction.as_dvec3().normalize()).abs()
+}
+
+/// `close`, widened for grazing rays: the distance to a triangle seen at a grazing angle is
+/// ill-conditioned (a relative change of 1e-7 in a corner moves it by about 1e-7 / cos), so the
+/// f32 test and the f64 reference may differ by that much.
+fn close_conditioned(a: f32, b: f32, cos: f64) -> bool {
+    let tol = a.abs().max(1.0) as f64 * (1e-4 + 4e-7 / cos.max(1e-9));
+    ((a - b).abs() as f64) <= tol
+}
+
+/// Where each (instance, triangle) id is in a `SceneTriangles`.
+struct Corners<'a> {
+    tris: &'a SceneTriangles,
+    index: std::collections::HashMap<(u32, u32), usize>,
+}
+
+impl<'a> Corners<'a> {
+    fn new(tris: &'a SceneTriangles) -> Self {
+        let index = tris
+            .ids
+            .iter()
+            .enumerate()
+            .map(|(i, &id)| (id, i))
+            .collect();
+        Self { tris, index }
+    }
+    fn of(&self, h: &pathlight_accel::Hit) -> &[Vec3; 3] {
+        &self.tris.corners[self.index[&(h.instance, h.triangle)]]
+    }
+}
+
+/// Compares one ray; counts wrong hits and miss mismatches.
+fn compare(
+    native: &NativeBvh,
+    brute: &BruteForce,
+    corners: &Corners,
+    ray: &Ray,
+    tally: &mut Tally,
+) {
+    let n = native.intersect(ray);
+    let b = brute.intersect(ray);
+    let occ = native.occluded(ray);
+    tally.rays += 1;
+    assert_eq!(
+        occ,
+        n.is_some(),
+        "occluded() disagrees with intersect() for {ray:?}"
+    );
+    if let Some(h) = n {
+        assert!(
+            h.t >= ray.t_min && h.t <= ray.t_max,
+            "t out of range: {h:?} {ray:?}"
+        );
+    }
+    match (n, b) {
+        (None, None) => {}
+        (Some(x), Some(y)) => {
+            tally.hits += 1;
+            let same = (x.instance, x.triangle) == (y.instance, y.triangle);
+            let cos = cosine(ray, corners.of(&x)).min(cosine(ray, corners.of(&y)));
+            if !close_conditioned(x.t, y.t, cos) {
+                eprintln!("wrong hit: native {x:?} brute {y:?} for {ray:?}");
+                tally.wrong += 1;
+            } else if same && cos > 1e-2 {
+                assert!(
+                    (x.u - y.u).abs() < 1e-3 && (x.v - y.v).abs() < 1e-3,
+                    "barycentrics: native {x:?} brute {y:?}"
+                );
+            }
+        }
+        _ => {
+            tally.miss_mismatch += 1;
+            if tally.miss_mismatch <= 3 {
+                eprintln!("miss mismatch: native {n:?} brute {b:?} for {ray:?}");
+            }
+        }
+    }
+}
+
+fn check_all(tris: &SceneTriangles, rays: &[Ray]) -> Tally {
+    let brute = BruteForce::new(tris.clone());
+    let corners = Corners::new(tris);
+    let mut total = Tally::default();
+    for isa in Isa::supported() {
+        let native = NativeBvh::with_isa(tris, isa);
+        let mut tally = Tally::default();
+        for r in rays {
+            compare(&native, &brute, &corners, r, &mut tally);
+        }
+        assert_eq!(tally.wrong, 0, "{isa:?}: {tally:?}");
+        total.rays += tally.rays;
+        total.hits += tally.hits;
+        total.miss_mismatch += tally.miss_mismatch;
+    }
+    total
+}
+
+#[test]
+fn random_soups_agree_with_brute_force() {
+    for (seed, n, size) in [
+        (1u64, 1usize, 0.5f32),
+        (2, 5, 0.5),
+        (3, 37, 0.3),
+        (4, 300, 0.2),
+        (5, 3000, 0.05),
+        (6, 2000, 1.5),
+    ] {
+        let mut rng = Rng(seed);
+        let tris = random_soup(&mut rng, n, size);
+        let rays = random_rays(&mut rng, &tris, 3000, 1.5);
+        let tally = check_all(&soup(tris), &rays);
+        assert_eq!(tally.miss_mismatch, 0, "seed {seed}: {tally:?}");
+        assert!(tally.hits > 0, "seed {seed}: {tally:?}");
+    }
+}
+
+#[test]
+fn empty_scene_and_zero_direction() {
+    let native = NativeBvh::new(&SceneTriangles::default());
+    let r = Ray::new(Vec3::ZERO, Vec3::X);
+    assert!(native.intersect(&r).is_none() && !native.occluded(&r));
+    assert_eq!(native.stats().triangles, 0);
+    let one = soup(vec![[Vec3::ZERO, Vec3::X, Vec3::Y]]);
+    let native = NativeBvh::new(&one);
+    assert!(native
+        .intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::ZERO))
+        .is_none());
+    let h = native
+        .intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
+        .unwrap();
+    assert_eq!((h.instance, h.triangle), (0, 0));
+}
+
+/// A height field of `n x n` quads (two triangles each) sharing every edge, rotated to a
+/// generic orientation, with its rotation.
+fn height_field(rng: &mut Rng, n: usize, jitter: f32, bump: f32) -> (Vec<[Vec3; 3]>, Mat3) {
+    let rot = Mat3::from_axis_angle(rng.unit(), rng.range(0.0, 3.0));
+    let mut v = vec![Vec3::ZERO; (n + 1) * (n + 1)];
+    for j in 0..=n {
+        for i in 0..=n {
+            let p = Vec3::new(
+                i as f32 + rng.range(-jitter, jitter),
+                j as f32 + rng.range(-jitter, jitter),
+                rng.range(-bump, bump),
+            );
+            v[j * (n + 1) + i] = rot * p;
+        }
+    }
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let a = v[j * (n + 1) + i];
+            let b = v[j * (n + 1) + i + 1];
+            let c = v[(j + 1) * (n + 1) + i];
+            let d = v[(j + 1) * (n + 1) + i + 1];
+            if (i + j) % 2 == 0 {
+                tris.push([a, b, d]);
+                tris.push([a, d, c]);
+            } else {
+                tris.push([a, b, c]);
+                tris.push([b, d, c]);
+            }
+        }
+    }
+    (tris, rot)
+}
+
+#[test]
+fn watertight_through_shared_edges_and_vertices() {
+    let mut brute_slips = 0;
+    let mut total = 0;
+    for (seed, jitter, bump) in [(10u64, 0.0f32, 0.0f32), (11, 0.3, 0.0), (12, 0.3, 0.4)] {
+        let mut rng = Rng(seed);
+        let n = 24;
+        let (tris, rot) = height_field(&mut rng, n, jitter, bump);
+        let scene = soup(tris.clone());
+        let brute = BruteForce::new(scene.clone());
+        let up = rot * Vec3::Z;
+        let natives: Vec<NativeBvh> = Isa::supported()
+            .into_iter()
+            .map(|isa| NativeBvh::with_isa(&scene, isa))
+            .collect();
+        for k in 0..4000 {
+            // Interior vertices and points on interior edges (shared by two triangles).
+            let t = &tris[(2 + rng.below(n - 4)) * 2 * n + 2 * (2 + rng.below(n - 4))];
+            let target = match k % 3 {
+                0 => t[rng.below(3)],
+                1 => t[0].lerp(t[1], rng.f()),
+                _ => t[1].lerp(t[2], rng.f()),
+            };
+            let side = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let mut dir_out = rng.unit();
+            if dir_out.dot(up) * side < 0.2 {
+                dir_out = (dir_out + up * side * 2.0).normalize();
+            }
+            let origin = target + dir_out * rng.range(0.5, 30.0);
+            let ray = Ray::new(origin, target - origin);
+            for native in &natives {
+                let h = native.intersect(&ray);
+                assert!(
+                    h.is_some(),
+                    "{:?} slipped through at {target} (seed {seed}, ray {ray:?})",
+                    native.isa()
+                );
+                assert!(native.occluded(&ray));
+            }
+            total += 1;
+            if brute.intersect(&ray).is_none() {
+                brute_slips += 1;
+            }
+        }
+    }
+    eprintln!("brute force (f64 Moller-Trumbore) slipped through {brute_slips} of {total}");
+}
+
+#[test]
+fn axis_aligned_rays_on_a_grid_hit_vertices_and_edges() {
+    // A flat integer grid: rays along -z through vertices, edges and cells, and rays along
+    // the other axes and diagonals at exact grid coordinates, with zero direction components.
+    let mut grid = Vec::new();
+    for j in 0..8 {
+        for i in 0..8 {
+            let (x, y) = (i as f32, j as f32);
+            let a = Vec3::new(x, y, 0.0);
+            let b = Vec3::new(x + 1.0, y, 0.0);
+            let c = Vec3::new(x, y + 1.0, 0.0);
+            let d = Vec3::new(x + 1.0, y + 1.0, 0.0);
+            grid.push([a, b, d]);
+            grid.push([a, d, c]);
+        }
+    }
+    let scene = soup(grid);
+    let brute = BruteForce::new(scene.clone());
+    for isa in Isa::supported() {
+        let native = NativeBvh::with_isa(&scene, isa);
+        for j in 0..=16 {
+            for i in 0..=16 {
+                let (x, y) = (i as f32 * 0.5, j as f32 * 0.5);
+                for d in [-Vec3::Z, Vec3::Z] {
+                    let ray = Ray::new(Vec3::new(x, y, -d.z * 3.0), d);
+                    let h = native
+                        .intersect(&ray)
+                        .unwrap_or_else(|| panic!("{isa:?} {ray:?}"));
+                    assert!((h.t - 3.0).abs() < 1e-6);
+                    assert!(brute.intersect(&ray).is_some());
+                }
+                // Diagonal rays with a zero x component through grid points.
+                let ray = Ray::new(Vec3::new(x, y - 1.0, 1.0), Vec3::new(0.0, 1.0, -1.0));
+                let b = brute.intersect(&ray);
+                let n = native.intersect(&ray);
+                assert_eq!(n.is_some(), b.is_some(), "{isa:?} {ray:?}");
+                // Rays in the grid's plane along x and y: both miss (zero determinant).
+                for d in [Vec3::X, Vec3::Y, -Vec3::X, Vec3::new(1.0, 1.0, 0.0)] {
+                    let ray = Ray::new(Vec3::new(x, y, 0.0) - d * 2.0, d);
+                    assert_eq!(native.intersect(&ray), None, "{isa:?} {ray:?}");
+                    assert_eq!(brute.intersect(&ray), None);
+                    assert!(!native.occluded(&ray));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn boxes_grazed_along_axes() {
+    // Unit cubes on an integer lattice, rays along the axes at integer and half-integer
+    // coordinates: they graze faces, edges and box bounds exactly.
+    let mut tris = Vec::new();
+    for k in 0..3 {
+        for j in 0..3 {
+            for i in 0..3 {
+                if (i + j + k) % 2 == 1 {
+                    continue;
+                }
+                let o = Vec3::new(i as f32, j as f32, k as f32) * 2.0;
+                for axis in 0..3 {
+                    for side in [0.0, 1.0] {
+                        let n = Vec3::AXES[axis];
+                        let u = Vec3::AXES[(axis + 1) % 3];
+                        let v = Vec3::AXES[(axis + 2) % 3];
+                        let c = o + n * side;
+                        tris.push([c, c + u, c + u + v]);
+                        tris.push([c, c + u + v, c + v]);
+                    }
+                }
+            }
+        }
+    }
+    let scene = soup(tris);
+    let mut rays = Vec::new();
+    for a in 0..=12 {
+        for b in 0..=12 {
+            let (p, q) = (a as f32 * 0.5 - 0.5, b as f32 * 0.5 - 0.5);
+            for (o, d) in [
+                (Vec3::new(-3.0, p, q), Vec3::X),
+                (Vec3::new(9.0, p, q), -Vec3::X),
+                (Vec3::new(p, -3.0, q), Vec3::Y),
+                (Vec3::new(p, q, 9.0), -Vec3::Z),
+                (Vec3::new(p, q, -3.0), Vec3::new(0.0, 1.0, 1.0)),
+            ] {
+                rays.push(Ray::new(o, d));
+            }
+        }
+    }
+    let tally = check_all(&scene, &rays);
+    eprintln!("grazing box rays: {tally:?}");
+    // Rays exactly along faces are in-plane for those faces; both tests then decide by the
+    // perpendicular faces' edges, where they may differ on a few rays.
+    assert!(
+        tally.miss_mismatch * 50 <= tally.rays,
+        "too many grazing disagreements: {tally:?}"
+    );
+}
+
+#[test]
+fn origins_on_surfaces() {
+    // Two parallel planes; origins exactly on the lower one.
+    let mut tris = Vec::new();
+    for z in [0.0f32, 1.0] {
+        for j in 0..4 {
+            for i in 0..4 {
+                let (x, y) = (i as f32, j as f32);
+                let a = Vec3::new(x, y, z);
+                tris.push([a, a + Vec3::X, a + Vec3::X + Vec3::Y]);
+                tris.push([a, a + Vec3::X + Vec3::Y, a + Vec3::Y]);
+            }
+        }
+    }
+    let scene = soup(tris);
+    let brute = BruteForce::new(scene.clone());
+    let mut rng = Rng(30);
+    for isa in Isa::supported() {
+        let native = NativeBvh::with_isa(&scene, isa);
+        for _ in 0..500 {
+            let o = Vec3::new(rng.range(0.5, 3.5), rng.range(0.5, 3.5), 0.0);
+            let d = Vec3::new(rng.range(-0.3, 0.3), rng.range(-0.3, 0.3), 1.0);
+            // t_min = 0: the surface under the origin, at t = 0.
+            let h = native.intersect(&Ray::new(o, d)).unwrap();
+            let b = brute.intersect(&Ray::new(o, d)).unwrap();
+            assert_eq!(h.t, 0.0, "{isa:?}");
+            assert_eq!(b.t, 0.0);
+            // A small t_min skips it: the upper plane at t = 1.
+            let r = Ray::segment(o, d, 1e-4, f32::INFINITY);
+            let h = native.intersect(&r).unwrap();
+            assert!((h.t - 1.0).abs() < 1e-6, "{isa:?} {h:?}");
+            assert!(h.triangle >= 32);
+            assert!(native.occluded(&r));
+            assert!(!native.occluded(&Ray::segment(o, d, 1e-4, 0.999)));
+        }
+    }
+    // Secondary rays from hit points of a random soup, with a small t_min.
+    let mut rng = Rng(31);
+    let tris = random_soup(&mut rng, 500, 0.3);
+    let scene = soup(tris.clone());
+    let native = NativeBvh::new(&scene);
+    let mut rays = Vec::new();
+    for r in random_rays(&mut rng, &tris, 3000, 1.5) {
+        if let Some(h) = native.intersect(&r) {
+            rays.push(Ray::segment(r.at(h.t), rng.unit(), 1e-3, f32::INFINITY));
+        }
+    }
+    let tally = check_all(&scene, &rays);
+    assert_eq!(tally.miss_mismatch, 0, "{tally:?}");
+}
+
+#[test]
+fn zero_area_triangles_are_never_hit() {
+    let mut rng = Rng(40);
+    let good = random_soup(&mut rng, 400, 0.3);
+    let mut all = good.clone();
+    // Exactly representable (dyadic) corners, so the collinear ones are exactly collinear.
+    let dyadic = |rng: &mut Rng| (rng.vec(-1.0, 1.0) * 64.0).round() / 64.0;
+    for i in 0..400 {
+        let a = dyadic(&mut rng);
+        let b = dyadic(&mut rng);
+        let d = Vec3::new(1.0, 2.0, -3.0) * (1 + rng.below(8)) as f32 / 8.0;
+        all.push(match i % 3 {
+            0 => [a, a, a],
+            1 => [a, b, a],
+            _ => [a, a + d, a + d * 2.0],
+        });
+    }
+    let native = NativeBvh::new(&soup(all.clone()));
+    assert_eq!(native.stats().triangles, 400);
+    assert_eq!(native.stats().degenerate, 400);
+    let reference = BruteForce::new(soup(good));
+    for ray in random_rays(&mut rng, &all, 6000, 1.5) {
+        let h = native.intersect(&ray);
+        if let Some(h) = h {
+            assert!(h.triangle < 400, "{h:?}");
+        }
+        // Rays aimed exactly along the degenerate ones: no crash, no hit on them.
+        let deg = &all[400 + rng.below(400)];
+        let along = Ray::new(deg[0] - (deg[1] - deg[0]), deg[1] - deg[0]);
+        if let Some(h) = native.intersect(&along) {
+            assert!(h.triangle < 400, "{h:?}");
+        }
+        let b = reference.intersect(&ray);
+        if let (Some(x), Some(y)) = (h, b) {
+            if x.triangle < 400 {
+                assert!(close(x.t, y.t), "{x:?} {y:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn huge_and_tiny_coordinates() {
+    for scale in [1e-20f32, 1e-10, 1e7, 1e15, 1e30] {
+        let mut rng = Rng(50);
+        let base = random_soup(&mut rng, 300, 0.3);
+        let base_rays = random_rays(&mut rng, &base, 1000, 1.5);
+        let tris: Vec<[Vec3; 3]> = base.iter().map(|t| t.map(|p| p * scale)).collect();
+        let scene = soup(tris);
+        let brute = BruteForce::new(scene.clone());
+        for isa in Isa::supported() {
+            let native = NativeBvh::with_isa(&scene, isa);
+            let mut mismatch = 0;
+            for r in &base_rays {
+                // Direction unscaled, so t scales too; compare t / scale.
+                let ray = Ray::segment(r.origin * scale, r.direction, 0.0, f32::INFINITY);
+                let n = native.intersect(&ray);
+                let b = brute.intersect(&ray);
+                assert_eq!(native.occluded(&ray), n.is_some());
+                match (n, b) {
+                    (Some(x), Some(y)) => {
+                        let cos = cosine(r, &base[x.triangle as usize])
+                            .min(cosine(r, &base[y.triangle as usize]));
+                        assert!(
+                            close_conditioned(x.t / scale, y.t / scale, cos),
+                            "{scale} {isa:?} {x:?} {y:?} cos {cos}"
+                        )
+                    }
+                    (None, None) => {}
+                    _ => mismatch += 1,
+                }
+            }
+            assert_eq!(mismatch, 0, "scale {scale} {isa:?}");
+        }
+    }
+}
+
+#[test]
+fn t_max_limits_and_axis_directions() {
+    let mut rng = Rng(60);
+    let tris = random_soup(&mut rng, 800, 0.2);
+    let mut rays = Vec::new();
+    for i in 0..3000 {
+        let o = rng.vec(-1.5, 1.5);
+        let mut d = Vec3::AXES[i % 3] * if i % 2 == 0 { 1.0 } else { -1.0 };
+        if i % 4 == 3 {
+            d[(i + 1) % 3] = rng.range(-1.0, 1.0);
+        }
+        let t_max = if i % 3 == 0 {
+            f32::INFINITY
+        } else {
+            rng.range(0.0, 3.0)
+        };
+        rays.push(Ray::segment(o, d, 0.0, t_max));
+        // Also with a -0.0 component.
+        rays.push(Ray::segment(o, d * Vec3::new(-1.0, 1.0, 1.0), 0.0, t_max));
+    }
+    let scene = soup(tris);
+    let tally = check_all(&scene, &rays);
+    assert_eq!(tally.miss_mismatch, 0, "{tally:?}");
+    assert!(tally.hits > 100, "{tally:?}");
+    // Hits exactly at t_max count, just beyond don't.
+    let native = NativeBvh::new(&scene);
+    for r in &rays {
+        if let Some(h) = native.intersect(r) {
+            let below = Ray::segment(r.origin, r.direction, 0.0, h.t * (1.0 - 1e-4));
+            if let Some(g) = native.intersect(&below) {
+                assert!(g.t <= below.t_max && g.t < h.t);
+            }
+            assert!(native.occluded(&Ray::segment(r.origin, r.direction, 0.0, h.t)));
+        }
+    }
+}
+
+#[test]
+fn build_is_deterministic_across_thread_counts() {
+    let mut rng = Rng(70);
+    let tris = soup(random_soup(&mut rng, 20_000, 0.05));
+    let build = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| NativeBvh::new(&tris))
+    };
+    let (a, b) = (build(1), build(3));
+    let (sa, sb) = (a.stats(), b.stats());
+    assert_eq!(
+        (sa.nodes, sa.leaves, sa.packets, sa.depth, sa.sah_cost),
+        (sb.nodes, sb.leaves, sb.packets, sb.depth, sb.sah_cost)
+    );
+    for r in random_rays(&mut rng, &tris.corners, 2000, 1.5) {
+        assert_eq!(a.intersect(&r), b.intersect(&r));
+    }
+}
+
+fn shared_dir() -> PathBuf {
+    std::env::var_os("PATHLIGHT_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"))
+}
+
+fn load_shared(rel: &str) -> Option<SceneTriangles> {
+    let path = shared_dir().join("scenes").join(rel);
+    if !path.exists() {
+        eprintln!(
+            "skipping: {} not found (set PATHLIGHT_SHARED)",
+            path.display()
+        );
+        return None;
+    }
+    let scene = pathlight_scene::load_file(&path, &pathlight_scene::Limits::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    Some(SceneTriangles::from_scene(&scene))
+}
+
+fn check_mesh(rel: &str, rays: usize) {
+    let Some(tris) = load_shared(rel) else { return };
+    let native = NativeBvh::new(&tris);
+    eprintln!("{rel}: {}", native.stats());
+    let (lo, hi) = tris.corners.iter().flatten().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let c = (lo + hi) * 0.5;
+    let r = (hi - lo).length() * 0.5;
+    let mut rng = Rng(80);
+    let mut list = Vec::new();
+    for i in 0..rays {
+        let ray = match i % 3 {
+            // From outside, aimed at a random triangle.
+            0 => {
+                let o = c + rng.unit() * r * 2.0;
+                let t = &tris.corners[rng.below(tris.len())];
+                Ray::new(o, point_in(&mut rng, t) - o)
+            }
+            // From inside the bounds, random direction.
+            1 => Ray::new(lo + (hi - lo) * rng.vec(0.0, 1.0), rng.unit()),
+            // Shadow-ray-like segments.
+            _ => {
+                let o = lo + (hi - lo) * rng.vec(0.0, 1.0);
+                Ray::segment(o, rng.unit() * r, 1e-4, 1.0)
+            }
+        };
+        list.push(ray);
+    }
+    let brute = BruteForce::new(tris.clone());
+    let corners = Corners::new(&tris);
+    let mut tally = Tally::default();
+    for ray in &list {
+        compare(&native, &brute, &corners, ray, &mut tally);
+    }
+    eprintln!("{rel}: {tally:?}");
+    assert_eq!(tally.wrong, 0, "{rel}: {tally:?}");
+    assert!(tally.miss_mismatch <= rays / 1000, "{rel}: {tally:?}");
+}
+
+#[test]
+fn stanford_bunny_agrees_with_brute_force() {
+    check_mesh("extras_meshopt/stanford-bunny.glb", 1500);
+}
+
+#[test]
+fn cornell_box_agrees_with_brute_force() {
+    check_mesh("CornellBox/CornellBox-Original.gltf", 20_000);
+}
