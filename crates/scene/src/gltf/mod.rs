@@ -548,71 +548,75 @@ fn convert_primitive(
         .map(Vec3::from)
         .collect();
     let n = positions.len();
-    // Checked on the accessor's count before it is read, so that a hostile count on a
-    // secondary attribute is refused before anything of its size is allocated.
-    let check_len = |name: &str, a: usize| {
+    // A secondary attribute, its count checked against POSITION's before it is read, so that a
+    // hostile count is refused before anything of its size is allocated.
+    fn secondary<const N: usize, T: From<[f32; N]>>(
+        reader: &AccessorReader,
+        here: &str,
+        name: &str,
+        accessor: Option<usize>,
+        n: usize,
+        types: &[Type],
+        normalized: bool,
+    ) -> Result<Option<Vec<T>>> {
+        let Some(a) = accessor else { return Ok(None) };
         let len = reader.count(a)?;
-        if len == n as u64 {
-            Ok(())
-        } else {
-            Err(SceneError::new(
-                file,
+        if len != n as u64 {
+            return Err(SceneError::new(
+                reader.file,
                 format!("{here}: {name} has {len} elements but POSITION has {n}"),
-            ))
+            ));
         }
-    };
-    let normals = match attr(Semantic::Normals) {
-        Some(a) => {
-            check_len("NORMAL", a)?;
-            let v: Vec<Vec3> = reader
-                .read_floats::<3>(a, &[Type::Vec3], false)?
-                .into_iter()
-                .map(Vec3::from)
-                .collect();
-            Some(v)
-        }
-        None => None,
-    };
-    let tangents = match attr(Semantic::Tangents) {
-        Some(a) if normals.is_some() => {
-            check_len("TANGENT", a)?;
-            let v: Vec<Vec4> = reader
-                .read_floats::<4>(a, &[Type::Vec4], false)?
-                .into_iter()
-                .map(Vec4::from)
-                .collect();
-            Some(v)
-        }
-        _ => None, // glTF: without normals, tangents are ignored.
-    };
-    let uv = |set: u32| -> Result<Option<Vec<Vec2>>> {
-        match attr(Semantic::TexCoords(set)) {
-            Some(a) => {
-                check_len(&format!("TEXCOORD_{set}"), a)?;
-                let v: Vec<Vec2> = reader
-                    .read_floats::<2>(a, &[Type::Vec2], true)?
-                    .into_iter()
-                    .map(Vec2::from)
-                    .collect();
-                Ok(Some(v))
-            }
-            None => Ok(None),
-        }
-    };
-    let uv0 = uv(0)?;
-    let uv1 = uv(1)?;
-    let colors = match attr(Semantic::Colors(0)) {
-        Some(a) => {
-            check_len("COLOR_0", a)?;
-            let v: Vec<Vec4> = reader
-                .read_floats::<4>(a, &[Type::Vec3, Type::Vec4], true)?
-                .into_iter()
-                .map(Vec4::from)
-                .collect();
-            Some(v)
-        }
-        None => None,
-    };
+        let values = reader.read_floats::<N>(a, types, normalized)?;
+        Ok(Some(values.into_iter().map(T::from).collect()))
+    }
+    let normals: Option<Vec<Vec3>> = secondary(
+        reader,
+        &here,
+        "NORMAL",
+        attr(Semantic::Normals),
+        n,
+        &[Type::Vec3],
+        false,
+    )?;
+    // glTF: without normals, tangents are ignored.
+    let tangent_accessor = attr(Semantic::Tangents).filter(|_| normals.is_some());
+    let tangents: Option<Vec<Vec4>> = secondary(
+        reader,
+        &here,
+        "TANGENT",
+        tangent_accessor,
+        n,
+        &[Type::Vec4],
+        false,
+    )?;
+    let uv0: Option<Vec<Vec2>> = secondary(
+        reader,
+        &here,
+        "TEXCOORD_0",
+        attr(Semantic::TexCoords(0)),
+        n,
+        &[Type::Vec2],
+        true,
+    )?;
+    let uv1: Option<Vec<Vec2>> = secondary(
+        reader,
+        &here,
+        "TEXCOORD_1",
+        attr(Semantic::TexCoords(1)),
+        n,
+        &[Type::Vec2],
+        true,
+    )?;
+    let colors: Option<Vec<Vec4>> = secondary(
+        reader,
+        &here,
+        "COLOR_0",
+        attr(Semantic::Colors(0)),
+        n,
+        &[Type::Vec3, Type::Vec4],
+        true,
+    )?;
     let indices: Vec<u32> = match prim.indices {
         Some(i) => {
             let idx = reader.read_indices(i.value())?;
