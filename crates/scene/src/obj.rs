@@ -55,8 +55,8 @@
 //! transform, `-clamp on` clamps, `-bm` scales bumps; `-blendu`, `-blendv`, `-boost`, `-cc`,
 //! `-imfchan`, `-mm`, `-t`, `-texres`, `-type` are skipped with their arguments. The file name is
 //! the rest of the line (it may hold spaces). Texture paths are relative to the material
-//! library's folder. A texture that is missing, refused or not a valid PNG/JPEG gives a warning
-//! and the material goes without it; textures over the size limits are errors. Textures are
+//! library's folder. A texture that is missing, refused, over a size limit or not a valid PNG/JPEG gives a
+//! warning and the material goes without it (as in the glTF loader). Textures are
 //! shared between materials by (file, use) and decoded in parallel.
 //!
 //! Meshes whose material has a normal map get flat normals if they have none, then MikkTSpace
@@ -76,7 +76,7 @@ use crate::mesh::{doubled_area, Dropped, Instance, Mesh};
 use crate::scene::Scene;
 use crate::source::{read_file_limited, SceneSource};
 use crate::tangent::{generate_tangents, make_flat_normals};
-use crate::texture::{check_pixels, decode_image, ColorSpace, Texture};
+use crate::texture::{check_pixels, decode_image, image_header, ColorSpace, Texture};
 
 /// Loads an OBJ file and the material libraries and textures it names (inside its folder only).
 pub fn load(path: &Path, limits: &Limits) -> Result<Scene> {
@@ -635,7 +635,6 @@ impl<'a> ObjParser<'a> {
             }
             let bytes = match self.source.read(&path, self.limits.max_file_bytes) {
                 Ok(b) => b,
-                Err(e) if is_limit_error(&e) => return Err(e),
                 Err(e) => {
                     self.warnings.push(
                         self.file,
@@ -760,11 +759,6 @@ impl<'a> ObjParser<'a> {
             ..Scene::default()
         })
     }
-}
-
-/// True for the errors of a file or image over a size limit (hard errors even for textures).
-fn is_limit_error(e: &SceneError) -> bool {
-    e.problem.contains("over the limit")
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1203,24 +1197,27 @@ fn build_materials(
     for (f, result) in read {
         match result {
             Ok(bytes) => {
-                if let Some((w, h)) = image_size(&bytes) {
-                    check_pixels(f, w, h, limits.max_texture_pixels)?;
+                // Limits are checked on the header, before decoding; like a missing texture,
+                // one over a limit is dropped with a warning (as the glTF loader does).
+                if let Ok((_, w, h)) = image_header(&bytes, f) {
+                    if let Err(e) = check_pixels(f, w, h, limits.max_texture_pixels) {
+                        warn(warnings, f, &e.to_string());
+                        continue;
+                    }
                     total_pixels += w as u64 * h as u64;
+                    if total_pixels > limits.max_total_texture_pixels {
+                        let problem = format!(
+                            "the textures hold over {} pixels in all (the limit)",
+                            limits.max_total_texture_pixels
+                        );
+                        warn(warnings, f, &problem);
+                        continue;
+                    }
                 }
                 bytes_of.push((f, bytes));
             }
-            Err(e) if is_limit_error(&e) => return Err(e),
             Err(e) => warn(warnings, f, &e.to_string()),
         }
-    }
-    if total_pixels > limits.max_total_texture_pixels {
-        return Err(SceneError::new(
-            &referrer[files[0]].0,
-            format!(
-                "the textures hold {total_pixels} pixels, over the limit of {}",
-                limits.max_total_texture_pixels
-            ),
-        ));
     }
     let decoded: Vec<(&PathBuf, Result<Image>)> = bytes_of
         .par_iter()
@@ -1232,7 +1229,6 @@ fn build_materials(
             Ok(img) => {
                 images.insert(f, img);
             }
-            Err(e) if is_limit_error(&e) => return Err(e),
             Err(e) => warn(warnings, f, &e.to_string()),
         }
     }
@@ -1288,15 +1284,6 @@ fn build_materials(
         }
     }
     Ok((materials, textures))
-}
-
-/// The width and height from an image's header, if it can be read.
-fn image_size(bytes: &[u8]) -> Option<(u32, u32)> {
-    image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .ok()?
-        .into_dimensions()
-        .ok()
 }
 
 /// Resolves a texture reference relative to its material library's folder.
@@ -2114,7 +2101,7 @@ mod tests {
     }
 
     #[test]
-    fn texture_limits_are_errors() {
+    fn textures_over_the_limits_are_dropped_with_a_warning() {
         let big = png(8, 8, |_, _| [0; 4]);
         let mtl = b"newmtl m\nmap_Kd big.png\n";
         let files: &[(&str, &[u8])] = &[("m.mtl", mtl), ("big.png", &big)];
@@ -2130,17 +2117,23 @@ mod tests {
                 limits,
             )
         };
-        let e = run(&limits).unwrap_err();
-        assert!(e.to_string().contains("over the limit"), "{e}");
+        let dropped = |s: Scene| {
+            assert!(s.textures.is_empty() && s.materials[0].base_color_texture.is_none());
+            assert!(
+                s.warnings
+                    .iter()
+                    .any(|w| w.contains("over the limit") || w.contains("(the limit)")),
+                "{:?}",
+                s.warnings
+            );
+        };
+        dropped(run(&limits).unwrap());
         let limits = Limits {
             max_total_texture_pixels: 63,
             ..Limits::default()
         };
-        assert!(run(&limits)
-            .unwrap_err()
-            .to_string()
-            .contains("over the limit"));
-        assert!(run(&Limits::default()).is_ok());
+        dropped(run(&limits).unwrap());
+        assert_eq!(run(&Limits::default()).unwrap().textures.len(), 1);
     }
 
     #[test]

@@ -198,7 +198,7 @@ fn textures_on_disk_and_missing_ones() {
 }
 
 #[test]
-fn files_over_the_size_limit_are_errors() {
+fn files_over_the_size_limit_are_refused() {
     let dir = TempDir::new("size");
     let obj = dir.write("big.obj", &b"v 0 0 0\n".repeat(1000));
     let limits = Limits {
@@ -207,11 +207,17 @@ fn files_over_the_size_limit_are_errors() {
     };
     let e = obj::load(&obj, &limits).unwrap_err();
     assert!(e.to_string().contains("over the limit"), "{e}");
-    // ... and so is a material library over it.
+    // A material library over it is not read, like a missing one: a warning, default materials.
     dir.write("big.mtl", &b"# padding\n".repeat(200));
     let obj = dir.write("small.obj", b"mtllib big.mtl\n");
-    let e = obj::load(&obj, &limits).unwrap_err();
-    assert!(e.to_string().contains("over the limit"), "{e}");
+    let s = obj::load(&obj, &limits).unwrap();
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("big.mtl") && w.contains("over the limit")),
+        "{:?}",
+        s.warnings
+    );
 }
 
 #[test]
