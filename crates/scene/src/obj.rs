@@ -55,9 +55,9 @@
 //! transform, `-clamp on` clamps, `-bm` scales bumps; `-blendu`, `-blendv`, `-boost`, `-cc`,
 //! `-imfchan`, `-mm`, `-t`, `-texres`, `-type` are skipped with their arguments. The file name is
 //! the rest of the line (it may hold spaces). Texture paths are relative to the material
-//! library's folder. A texture that is missing, refused, over a size limit or not a valid PNG/JPEG gives a
-//! warning and the material goes without it (as in the glTF loader). Textures are
-//! shared between materials by (file, use) and decoded in parallel.
+//! library's folder. A texture that is missing, refused, over a size limit or not a valid
+//! PNG/JPEG gives a warning and the material goes without it (as in the glTF loader). Textures
+//! are shared between materials by (file, use) and decoded in parallel.
 //!
 //! Meshes whose material has a normal map get flat normals if they have none, then MikkTSpace
 //! tangents.
