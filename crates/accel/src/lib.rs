@@ -4,16 +4,25 @@
 
 pub mod brute;
 mod bvh;
+#[cfg(feature = "embree")]
+pub mod embree;
 pub mod geometry;
 pub mod native;
 pub mod ray;
+pub mod rays;
 mod simd;
 pub mod triangle;
 
 pub use brute::BruteForce;
+#[cfg(feature = "embree")]
+pub use embree::{EmbreeAccel, EmbreeError, EmbreeOptions};
+/// The Embree bindings, for [`EmbreeOptions`]' build quality and flags.
+#[cfg(feature = "embree")]
+pub use embree3;
 pub use geometry::SceneTriangles;
 pub use native::{BuildStats, Isa, NativeBvh};
 pub use ray::{Hit, Ray};
+pub use rays::{RayKind, RaySets};
 
 /// An acceleration structure over the triangles of a scene.
 ///

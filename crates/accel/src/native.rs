@@ -6,13 +6,13 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::bvh::aabb::Aabb;
-use crate::bvh::wide::Node4;
+use crate::bvh::wide::{Node, WIDTH};
 use crate::bvh::{build, traverse, wide};
 use crate::geometry::SceneTriangles;
 use crate::ray::{Hit, Ray};
-use crate::simd::Scalar4;
 #[cfg(target_arch = "x86_64")]
-use crate::simd::Sse4;
+use crate::simd::{Avx8, Sse4};
+use crate::simd::{Pair, Scalar4};
 use crate::triangle::TriPacket;
 use crate::Accel;
 
@@ -21,9 +21,10 @@ use crate::Accel;
 pub enum Isa {
     /// Portable code on `[f32; 4]` (every target).
     Scalar,
-    /// 4-wide SSE (x86_64 baseline).
+    /// 4-wide SSE (x86_64 baseline): node boxes in two halves, triangles four at a time.
     Sse2,
-    /// The same 4-wide code compiled with AVX2 enabled (VEX encoding); x86_64 with AVX2.
+    /// 8-wide AVX node boxes, 4-wide triangle tests, all compiled with AVX2 enabled (VEX
+    /// encoding); x86_64 with AVX2.
     Avx2,
 }
 
@@ -77,12 +78,12 @@ pub struct BuildStats {
     pub triangles: usize,
     /// Zero-area input triangles left out (no ray can hit them).
     pub degenerate: usize,
-    /// 4-wide nodes.
+    /// Wide nodes (eight children each).
     pub nodes: usize,
     pub leaves: usize,
     /// Packets of four triangles (leaves pad the last one).
     pub packets: usize,
-    /// Depth of the 4-wide tree (the root is depth 0).
+    /// Depth of the wide tree (the root is depth 0).
     pub depth: u32,
     /// Surface area heuristic cost of the tree, in packet tests per ray hitting the root box
     /// (node visits cost 1, packet tests 1).
@@ -96,8 +97,9 @@ impl std::fmt::Display for BuildStats {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "native BVH4 ({}): {} triangles ({} degenerate left out), {} nodes, {} leaves, \
+            "native BVH{} ({}): {} triangles ({} degenerate left out), {} nodes, {} leaves, \
              {} packets, depth {}, SAH cost {:.2}, {:.1} ms, {:.1} MiB",
+            WIDTH,
             self.isa.name(),
             self.triangles,
             self.degenerate,
@@ -112,9 +114,9 @@ impl std::fmt::Display for BuildStats {
     }
 }
 
-/// A 4-wide BVH over a scene's world-space triangles, traversed with SIMD.
+/// An 8-wide BVH over a scene's world-space triangles, traversed with SIMD.
 pub struct NativeBvh {
-    nodes: Vec<Node4>,
+    nodes: Vec<Node<WIDTH>>,
     packets: Vec<TriPacket>,
     ids: Vec<(u32, u32)>,
     isa: Isa,
@@ -147,7 +149,7 @@ impl NativeBvh {
             .collect();
         let kept = prims.len();
         let bvh2 = build::build(&boxes, &centroids, prims);
-        let w = wide::collapse(&bvh2, corners);
+        let w = wide::collapse::<WIDTH>(&bvh2, corners);
         drop(bvh2);
         let mut bvh = NativeBvh {
             stats: BuildStats {
@@ -199,18 +201,20 @@ impl NativeBvh {
 mod avx2 {
     use super::*;
 
+    // The generic traversal is `#[inline(always)]` all the way down, so it is compiled here
+    // with AVX2 enabled.
     #[target_feature(enable = "avx2")]
     pub(super) fn closest(
-        nodes: &[Node4],
+        nodes: &[Node<WIDTH>],
         packets: &[TriPacket],
         ray: &Ray,
     ) -> Option<(u32, f32, f32, f32)> {
-        traverse::closest::<Sse4>(nodes, packets, ray)
+        traverse::closest::<WIDTH, Avx8, Sse4>(nodes, packets, ray)
     }
 
     #[target_feature(enable = "avx2")]
-    pub(super) fn occluded(nodes: &[Node4], packets: &[TriPacket], ray: &Ray) -> bool {
-        traverse::occluded::<Sse4>(nodes, packets, ray)
+    pub(super) fn occluded(nodes: &[Node<WIDTH>], packets: &[TriPacket], ray: &Ray) -> bool {
+        traverse::occluded::<WIDTH, Avx8, Sse4>(nodes, packets, ray)
     }
 }
 
@@ -227,8 +231,8 @@ impl Accel for NativeBvh {
             // SAFETY: `Isa::Avx2` is only chosen when the CPU reports AVX2 (`with_isa`).
             Isa::Avx2 => unsafe { avx2::closest(n, p, ray) },
             #[cfg(target_arch = "x86_64")]
-            Isa::Sse2 => traverse::closest::<Sse4>(n, p, ray),
-            _ => traverse::closest::<Scalar4>(n, p, ray),
+            Isa::Sse2 => traverse::closest::<WIDTH, Pair<Sse4>, Sse4>(n, p, ray),
+            _ => traverse::closest::<WIDTH, Pair<Scalar4>, Scalar4>(n, p, ray),
         };
         self.hit(r)
     }
@@ -241,13 +245,13 @@ impl Accel for NativeBvh {
             // SAFETY: `Isa::Avx2` is only chosen when the CPU reports AVX2 (`with_isa`).
             Isa::Avx2 => unsafe { avx2::occluded(n, p, ray) },
             #[cfg(target_arch = "x86_64")]
-            Isa::Sse2 => traverse::occluded::<Sse4>(n, p, ray),
-            _ => traverse::occluded::<Scalar4>(n, p, ray),
+            Isa::Sse2 => traverse::occluded::<WIDTH, Pair<Sse4>, Sse4>(n, p, ray),
+            _ => traverse::occluded::<WIDTH, Pair<Scalar4>, Scalar4>(n, p, ray),
         }
     }
 
     fn memory_bytes(&self) -> usize {
-        self.nodes.len() * std::mem::size_of::<Node4>()
+        self.nodes.len() * std::mem::size_of::<Node<WIDTH>>()
             + self.packets.len() * std::mem::size_of::<TriPacket>()
             + self.ids.len() * std::mem::size_of::<(u32, u32)>()
     }

@@ -156,6 +156,131 @@ impl F32x4 for Scalar4 {
     }
 }
 
+/// `W` lanes for the box tests of a `W`-wide node: the slab test needs only these.
+///
+/// `min` and `max` follow the SSE rule of [`F32x4`] (NaN in either lane gives `o`).
+pub(crate) trait BoxLanes<const W: usize>: Copy {
+    fn splat(x: f32) -> Self;
+    fn load(a: &[f32; W]) -> Self;
+    fn to_array(self) -> [f32; W];
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn min(self, o: Self) -> Self;
+    fn max(self, o: Self) -> Self;
+    /// Bit `i` set where lane `i` of `self <= o` (bits `0..W` only).
+    fn le_bits(self, o: Self) -> u32;
+}
+
+/// Eight box lanes in two [`F32x4`] halves.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Pair<S>(pub S, pub S);
+
+impl<S: F32x4> BoxLanes<8> for Pair<S> {
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Pair(S::splat(x), S::splat(x))
+    }
+    #[inline(always)]
+    fn load(a: &[f32; 8]) -> Self {
+        let (lo, hi) = a.split_at(4);
+        Pair(
+            S::load(lo.try_into().unwrap()),
+            S::load(hi.try_into().unwrap()),
+        )
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f32; 8] {
+        let (lo, hi) = (self.0.to_array(), self.1.to_array());
+        [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]]
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Pair(self.0.sub(o.0), self.1.sub(o.1))
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Pair(self.0.mul(o.0), self.1.mul(o.1))
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        Pair(self.0.min(o.0), self.1.min(o.1))
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        Pair(self.0.max(o.0), self.1.max(o.1))
+    }
+    #[inline(always)]
+    fn le_bits(self, o: Self) -> u32 {
+        (S::bits(self.0.le(o.0)) & 0xf) | (S::bits(self.1.le(o.1)) & 0xf) << 4
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx::Avx8;
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use std::arch::x86_64::*;
+
+    use super::BoxLanes;
+
+    /// Eight lanes in an AVX register.
+    ///
+    /// Only for code compiled with `#[target_feature(enable = "avx2")]` and run after AVX2 was
+    /// detected (the native backend's `Isa::Avx2` path): the methods are plain
+    /// `#[inline(always)]` functions so that they inline into such code, and they use AVX
+    /// instructions without checking.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Avx8(__m256);
+
+    impl BoxLanes<8> for Avx8 {
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            // SAFETY: AVX is available wherever `Avx8` is used (see the type's docs).
+            Avx8(unsafe { _mm256_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn load(a: &[f32; 8]) -> Self {
+            // SAFETY: `a` is 32 readable bytes, `loadu` needs no alignment; AVX is available
+            // wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn to_array(self) -> [f32; 8] {
+            let mut out = [0.0f32; 8];
+            // SAFETY: `out` is 32 writable bytes, `storeu` needs no alignment; AVX is
+            // available wherever `Avx8` is used.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+            out
+        }
+        #[inline(always)]
+        fn sub(self, o: Self) -> Self {
+            // SAFETY: AVX is available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_sub_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn mul(self, o: Self) -> Self {
+            // SAFETY: AVX is available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_mul_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            // SAFETY: AVX is available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_min_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            // SAFETY: AVX is available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_max_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn le_bits(self, o: Self) -> u32 {
+            // SAFETY: AVX is available wherever `Avx8` is used.
+            unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)) as u32 }
+        }
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 pub(crate) use sse::Sse4;
 
@@ -313,5 +438,36 @@ mod tests {
     #[test]
     fn sse_semantics() {
         check::<Sse4>();
+    }
+
+    fn check_box<const W: usize, B: BoxLanes<W>>() {
+        let mut a = [0.0f32; W];
+        for (i, x) in a.iter_mut().enumerate() {
+            *x = i as f32 - 2.0;
+        }
+        a[1] = f32::NAN;
+        let a = B::load(&a);
+        let b = B::splat(0.5);
+        let m = a.max(b).to_array();
+        assert_eq!(m[1], 0.5, "NaN first operand yields the second");
+        assert_eq!(a.min(b).to_array()[1], 0.5);
+        assert_eq!(m[0], 0.5);
+        assert_eq!(a.min(b).to_array()[0], -2.0);
+        // Lanes 0, 2 (values -2, 0) are <= 0.5; lane 1 is NaN.
+        assert_eq!(a.le_bits(b), 0b101);
+        assert_eq!(b.le_bits(b), (1 << W) - 1);
+        assert_eq!(a.sub(b).mul(b).to_array()[W - 1], (W as f32 - 3.5) * 0.5);
+    }
+
+    #[test]
+    fn box_lanes_semantics() {
+        check_box::<8, Pair<Scalar4>>();
+        #[cfg(target_arch = "x86_64")]
+        {
+            check_box::<8, Pair<Sse4>>();
+            if is_x86_feature_detected!("avx2") {
+                check_box::<8, Avx8>();
+            }
+        }
     }
 }

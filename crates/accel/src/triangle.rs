@@ -109,7 +109,8 @@ impl<S: F32x4> RayShearLanes<S> {
     #[inline(always)]
     pub fn new(r: &RayShear) -> Self {
         Self {
-            k: r.k,
+            // Already a permutation of 0..3; the clamp makes the in-bounds loads below evident.
+            k: r.k.map(|a| a.min(2)),
             o: r.o.map(S::splat),
             s: r.s.map(S::splat),
         }
@@ -153,9 +154,12 @@ impl<S: F32x4> PacketHits<S> {
 /// The sheared corner of one triangle vertex (`x, y` in the plane, `z` along the ray, unscaled).
 #[inline(always)]
 fn shear_lanes<S: F32x4>(p: &TriPacket, c: usize, r: &RayShearLanes<S>) -> (S, S, S) {
-    let ax = S::load(&p.v[c][r.k[0]]).sub(r.o[0]);
-    let ay = S::load(&p.v[c][r.k[1]]).sub(r.o[1]);
-    let az = S::load(&p.v[c][r.k[2]]).sub(r.o[2]);
+    let corner = &p.v[c];
+    // SAFETY: `RayShearLanes::new` clamps every `k` to 0..=2.
+    let load = |a: usize| S::load(unsafe { corner.get_unchecked(r.k[a]) });
+    let ax = load(0).sub(r.o[0]);
+    let ay = load(1).sub(r.o[1]);
+    let az = load(2).sub(r.o[2]);
     (ax.sub(r.s[0].mul(az)), ay.sub(r.s[1].mul(az)), az)
 }
 
@@ -177,6 +181,17 @@ pub(crate) fn intersect_packet<S: F32x4>(
     let neg = S::or(S::or(u.lt(zero), v.lt(zero)), w.lt(zero));
     let pos = S::or(S::or(u.gt(zero), v.gt(zero)), w.gt(zero));
     let miss = S::and(neg, pos);
+    // Most packets miss with all four lanes: skip the distance computation for them.
+    if S::bits(miss) == 0xf {
+        return PacketHits {
+            hits: 0,
+            redo: 0,
+            t: zero,
+            v: zero,
+            w: zero,
+            det: zero,
+        };
+    }
     let det = u.add(v).add(w);
     let sz = r.s[2];
     let tt = u

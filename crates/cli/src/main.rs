@@ -1,12 +1,13 @@
 //! `pathlight`: the command-line front end of the path tracer.
 //!
-//! One subcommand per job. Today only `info` exists; `render`, `view`, `play`, `bench` and `eval`
+//! One subcommand per job. Today `info` and `bench` exist; `render`, `view`, `play` and `eval`
 //! will slot in as further [`Command`] variants, each flattening the shared [`SceneArgs`] so that
 //! every command loads scenes the same way.
 //!
 //! Exit codes: 0 on success, 2 on any error (a usage error reported by clap, or a failed command,
 //! printed to stderr as `error: <message>`).
 
+mod bench;
 mod info;
 mod memory;
 mod scene_args;
@@ -35,6 +36,8 @@ pub struct Cli {
 pub enum Command {
     /// Load a scene and print its statistics (counts, bounds, load time, peak memory).
     Info(info::InfoArgs),
+    /// Measure: `bench rays` times the ray tracing backends on fixed ray sets.
+    Bench(bench::BenchArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -66,6 +69,7 @@ fn init_logging(verbose: u8) {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
+        Command::Bench(args) => bench::run(&args),
     }
 }
 
@@ -97,8 +101,44 @@ mod tests {
     fn verbose_is_global() {
         let cli = Cli::try_parse_from(["pathlight", "info", "-vv", "--json"]).unwrap();
         assert_eq!(cli.verbose, 2);
-        let Command::Info(args) = cli.command;
+        let Command::Info(args) = cli.command else {
+            panic!("not info")
+        };
         assert!(args.json);
         assert!(args.scene.scene.is_none());
+    }
+
+    #[test]
+    fn bench_rays_options() {
+        let cli = Cli::try_parse_from([
+            "pathlight",
+            "bench",
+            "rays",
+            "room.glb",
+            "--backend",
+            "native",
+            "--threads",
+            "2",
+            "--width",
+            "64",
+            "--repeat",
+            "3",
+            "--json",
+        ])
+        .unwrap();
+        let Command::Bench(b) = cli.command else {
+            panic!("not bench")
+        };
+        let bench::BenchCommand::Rays(r) = b.command;
+        assert_eq!(r.backend, bench::BackendChoice::Native);
+        assert_eq!(
+            (r.threads, r.width, r.height, r.repeat),
+            (Some(2), 64, 1024, 3)
+        );
+        assert!(r.json);
+        assert_eq!(
+            r.scene.scene.as_deref(),
+            Some(std::path::Path::new("room.glb"))
+        );
     }
 }

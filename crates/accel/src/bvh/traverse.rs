@@ -1,5 +1,6 @@
-//! Single-ray traversal of the 4-wide BVH: closest hit (children visited near to far) and any
-//! hit (first hit wins), generic over the lane type so SSE and scalar share one code path.
+//! Single-ray traversal of the wide BVH: closest hit (children visited near to far) and any
+//! hit (first hit wins), generic over the node width and the lane types, so AVX2, SSE and
+//! scalar code share one code path.
 //!
 //! The slab test uses `1 / d` with infinities for zero direction components. A ray starting
 //! exactly on a slab plane with a zero component gives `0 * inf = NaN` there, which the min/max
@@ -9,133 +10,229 @@
 
 use std::mem::MaybeUninit;
 
-use super::wide::{leaf_range, Node4, LEAF_BIT};
+use super::wide::{leaf_range, Node, LEAF_BIT};
 use crate::ray::Ray;
-use crate::simd::F32x4;
+use crate::simd::{BoxLanes, F32x4};
 use crate::triangle::{intersect_packet, lane_f64, RayShear, RayShearLanes, TriPacket};
 
 /// Traversal stack entries. The builder bounds the tree depth by `SAH_MAX_DEPTH + 32 = 80`,
-/// and each level pushes at most three entries.
-const STACK: usize = 256;
-const _: () = assert!(STACK > 3 * (super::build::SAH_MAX_DEPTH as usize + 32));
+/// and each level pushes at most `WIDTH - 1` entries.
+const STACK: usize = 640;
+const _: () =
+    assert!(STACK > (super::wide::WIDTH - 1) * (super::build::SAH_MAX_DEPTH as usize + 32));
 
 /// `1 + 2 * gamma(3)` of Ize's paper, plus one ulp for rounding the scaled reciprocal.
 const FAR_SCALE: f32 = 1.0 + 4.0 * f32::EPSILON;
 
 /// The per-ray constants of the slab test, in lanes.
-struct RayBox<S: F32x4> {
-    o: [S; 3],
-    inv: [S; 3],
-    inv_far: [S; 3],
-    /// Index into `Node4::b` of the near and far bound along each axis.
+struct RayBox<const W: usize, B: BoxLanes<W>> {
+    o: [B; 3],
+    inv: [B; 3],
+    inv_far: [B; 3],
+    /// Index into `Node::b` of the near bound along each axis (`2 * axis` or `2 * axis + 1`);
+    /// the far bound is at `near ^ 1`.
     near: [usize; 3],
-    far: [usize; 3],
 }
 
-impl<S: F32x4> RayBox<S> {
+impl<const W: usize, B: BoxLanes<W>> RayBox<W, B> {
     #[inline(always)]
     fn new(ray: &Ray) -> Self {
         let inv = ray.direction.recip().to_array();
-        let near = [0, 1, 2].map(|a| 2 * a + (inv[a] < 0.0) as usize);
         Self {
-            o: ray.origin.to_array().map(S::splat),
-            inv: inv.map(S::splat),
-            inv_far: inv.map(|i| S::splat(i * FAR_SCALE)),
-            near,
-            far: near.map(|n| n ^ 1),
+            o: ray.origin.to_array().map(B::splat),
+            inv: inv.map(B::splat),
+            inv_far: inv.map(|i| B::splat(i * FAR_SCALE)),
+            near: [
+                (inv[0] < 0.0) as usize,
+                2 + (inv[1] < 0.0) as usize,
+                4 + (inv[2] < 0.0) as usize,
+            ],
         }
     }
 
-    /// The children whose boxes overlap `[t_min, t_max]` (bit mask), and their entry distances.
+    /// The children whose boxes overlap `[t_min, t_max]` (bit mask, bits `0..W`), and their
+    /// entry distances.
     #[inline(always)]
-    fn test(&self, n: &Node4, t_min: S, t_max: S) -> (u32, S) {
-        let tn = |a: usize| S::load(&n.b[self.near[a]]).sub(self.o[a]).mul(self.inv[a]);
-        let tf = |a: usize| {
-            S::load(&n.b[self.far[a]])
-                .sub(self.o[a])
-                .mul(self.inv_far[a])
-        };
+    fn test(&self, n: &Node<W>, t_min: B, t_max: B) -> (u32, B) {
+        // SAFETY: `near[a]` is `2 * a` or `2 * a + 1` (see `new`), and so is `near[a] ^ 1`:
+        // both are below 6, the length of `n.b`.
+        let b = |i: usize| B::load(unsafe { n.b.get_unchecked(i) });
+        let tn = |a: usize| b(self.near[a]).sub(self.o[a]).mul(self.inv[a]);
+        let tf = |a: usize| b(self.near[a] ^ 1).sub(self.o[a]).mul(self.inv_far[a]);
         let t_near = tn(0).max(tn(1).max(tn(2).max(t_min)));
         let t_far = tf(0).min(tf(1).min(tf(2).min(t_max)));
-        (S::bits(t_near.le(t_far)), t_near)
+        (t_near.le_bits(t_far), t_near)
     }
+}
+
+/// A deferred subtree and the distance at which the ray enters its box.
+#[derive(Clone, Copy)]
+struct Entry {
+    code: u32,
+    dist: f32,
+}
+
+/// The fixed-size traversal stack.
+struct Stack<T: Copy> {
+    items: [MaybeUninit<T>; STACK],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline(always)]
+    fn new() -> Self {
+        Self {
+            items: [const { MaybeUninit::uninit() }; STACK],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, x: T) {
+        debug_assert!(self.len < STACK);
+        // SAFETY: a traversal pushes at most three entries per level of a tree at most
+        // `SAH_MAX_DEPTH + 32` levels deep (the builder's bound), fewer than `STACK` in all.
+        unsafe { self.items.get_unchecked_mut(self.len).write(x) };
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: entries below `len` were all written by `push` (or `sort_top`, which only
+        // permutes written entries).
+        Some(unsafe { self.items.get_unchecked(self.len).assume_init() })
+    }
+}
+
+impl Stack<Entry> {
+    /// Sorts the top `k` entries so the nearest is on top (insertion sort; `k <= WIDTH`).
+    #[inline(always)]
+    fn sort_top(&mut self, k: usize) {
+        debug_assert!(k <= self.len);
+        let base = self.len - k;
+        let s = self.items.as_mut_ptr();
+        for a in base + 1..self.len {
+            // SAFETY: `base..len` are initialised entries within the array (`k <= len`).
+            unsafe {
+                let x = (*s.add(a)).assume_init();
+                let mut j = a;
+                while j > base && (*s.add(j - 1)).assume_init().dist < x.dist {
+                    *s.add(j) = *s.add(j - 1);
+                    j -= 1;
+                }
+                s.add(j).write(MaybeUninit::new(x));
+            }
+        }
+    }
+}
+
+/// Child `i` (below `W`) of `node`.
+#[inline(always)]
+fn child<const W: usize>(node: &Node<W>, i: u32) -> u32 {
+    debug_assert!((i as usize) < W);
+    // SAFETY: `i` is a lane index of a `W`-bit hit mask (`BoxLanes::le_bits`).
+    unsafe { *node.child.get_unchecked(i as usize) }
+}
+
+/// The inner node of code `code`.
+#[inline(always)]
+fn node_at<const W: usize>(nodes: &[Node<W>], code: u32) -> &Node<W> {
+    debug_assert!((code as usize) < nodes.len());
+    // SAFETY: inner-node codes are indices into `nodes` by construction (`wide::collapse`
+    // numbers each node it pushes), and the root `0` always exists.
+    unsafe { nodes.get_unchecked(code as usize) }
+}
+
+/// The packets of the leaf of code `code`.
+#[inline(always)]
+fn leaf_at(packets: &[TriPacket], code: u32) -> &[TriPacket] {
+    let (first, count) = leaf_range(code);
+    debug_assert!(first + count <= packets.len());
+    // SAFETY: leaf codes name a range of packets `wide::collapse` emitted (empty slots have
+    // `count == 0`).
+    unsafe { packets.get_unchecked(first..first + count) }
 }
 
 /// The closest hit: (triangle id, t, u, v).
 #[inline(always)]
-pub(crate) fn closest<S: F32x4>(
-    nodes: &[Node4],
+pub(crate) fn closest<const W: usize, B: BoxLanes<W>, S: F32x4>(
+    nodes: &[Node<W>],
     packets: &[TriPacket],
     ray: &Ray,
 ) -> Option<(u32, f32, f32, f32)> {
     let shear = RayShear::new(ray)?;
     let lanes = RayShearLanes::<S>::new(&shear);
-    let rb = RayBox::<S>::new(ray);
+    let rb = RayBox::<W, B>::new(ray);
     let t_min = S::splat(ray.t_min);
+    let box_t_min = B::splat(ray.t_min);
     let mut best_t = ray.t_max;
-    let mut best: Option<(u32, f32, f32)> = None;
-    let mut stack = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
-    let mut sp = 0usize;
+    let mut t_max = S::splat(best_t);
+    let mut box_t_max = B::splat(best_t);
+    let mut best = (u32::MAX, 0.0f32, 0.0f32);
+    let mut stack = Stack::<Entry>::new();
     let mut code = 0u32;
     loop {
         if code & LEAF_BIT == 0 {
-            let node = &nodes[code as usize];
-            let (mut m, t_near) = rb.test(node, t_min, S::splat(best_t));
+            let node = node_at(nodes, code);
+            let (mut m, t_near) = rb.test(node, box_t_min, box_t_max);
             if m != 0 {
-                let i0 = m.trailing_zeros() as usize;
+                let i0 = m.trailing_zeros();
                 m &= m - 1;
                 if m == 0 {
-                    code = node.child[i0];
+                    code = child(node, i0);
                     continue;
                 }
                 let d = t_near.to_array();
-                let i1 = m.trailing_zeros() as usize;
+                // SAFETY: lane indices of a `W`-bit mask are below `W`.
+                let dist = |i: u32| unsafe { *d.get_unchecked(i as usize) };
+                let i1 = m.trailing_zeros();
                 m &= m - 1;
                 if m == 0 {
-                    let (a, b) = if d[i1] < d[i0] { (i1, i0) } else { (i0, i1) };
-                    stack[sp].write((node.child[b], d[b]));
-                    sp += 1;
-                    code = node.child[a];
+                    let (d0, d1) = (dist(i0), dist(i1));
+                    let (c0, c1) = (child(node, i0), child(node, i1));
+                    if d1 < d0 {
+                        stack.push(Entry { code: c0, dist: d0 });
+                        code = c1;
+                    } else {
+                        stack.push(Entry { code: c1, dist: d1 });
+                        code = c0;
+                    }
                     continue;
                 }
-                let mut e = [
-                    (node.child[i0], d[i0]),
-                    (node.child[i1], d[i1]),
-                    (0, 0.0),
-                    (0, 0.0),
-                ];
+                stack.push(Entry {
+                    code: child(node, i0),
+                    dist: dist(i0),
+                });
+                stack.push(Entry {
+                    code: child(node, i1),
+                    dist: dist(i1),
+                });
                 let mut k = 2;
                 while m != 0 {
-                    let i = m.trailing_zeros() as usize;
+                    let i = m.trailing_zeros();
                     m &= m - 1;
-                    e[k] = (node.child[i], d[i]);
+                    stack.push(Entry {
+                        code: child(node, i),
+                        dist: dist(i),
+                    });
                     k += 1;
                 }
-                // Sort by distance, farthest first; push all but the nearest.
-                for a in 1..k {
-                    let x = e[a];
-                    let mut j = a;
-                    while j > 0 && e[j - 1].1 < x.1 {
-                        e[j] = e[j - 1];
-                        j -= 1;
-                    }
-                    e[j] = x;
-                }
-                for x in &e[..k - 1] {
-                    stack[sp].write(*x);
-                    sp += 1;
-                }
-                code = e[k - 1].0;
+                stack.sort_top(k);
+                // The nearest is on top: visit it now.
+                code = stack.pop().map_or(0, |e| e.code);
                 continue;
             }
         } else {
-            let (first, count) = leaf_range(code);
-            for p in &packets[first..first + count] {
-                let h = intersect_packet(p, &lanes, t_min, S::splat(best_t));
+            for p in leaf_at(packets, code) {
+                let h = intersect_packet(p, &lanes, t_min, t_max);
                 if h.hits != 0 {
                     let (lane, t, u, v) = h.nearest();
                     best_t = t;
-                    best = Some((p.id[lane], u, v));
+                    best = (p.id[lane], u, v);
                 }
                 let mut redo = h.redo;
                 while redo != 0 {
@@ -143,22 +240,20 @@ pub(crate) fn closest<S: F32x4>(
                     redo &= redo - 1;
                     if let Some((t, u, v)) = lane_f64(p, lane, &shear, ray.t_min, best_t) {
                         best_t = t;
-                        best = Some((p.id[lane], u, v));
+                        best = (p.id[lane], u, v);
                     }
                 }
+                t_max = S::splat(best_t);
             }
+            box_t_max = B::splat(best_t);
         }
         // Pop the next entry still in front of the closest hit.
         loop {
-            if sp == 0 {
-                return best.map(|(id, u, v)| (id, best_t, u, v));
-            }
-            sp -= 1;
-            // SAFETY: entries below `sp` were all written before (the stack only grows by
-            // `write` followed by `sp += 1`).
-            let (c, d) = unsafe { stack[sp].assume_init() };
-            if d <= best_t {
-                code = c;
+            let Some(e) = stack.pop() else {
+                return (best.0 != u32::MAX).then_some((best.0, best_t, best.1, best.2));
+            };
+            if e.dist <= best_t {
+                code = e.code;
                 break;
             }
         }
@@ -167,36 +262,38 @@ pub(crate) fn closest<S: F32x4>(
 
 /// True when any triangle lies on the ray within `[t_min, t_max]`.
 #[inline(always)]
-pub(crate) fn occluded<S: F32x4>(nodes: &[Node4], packets: &[TriPacket], ray: &Ray) -> bool {
+pub(crate) fn occluded<const W: usize, B: BoxLanes<W>, S: F32x4>(
+    nodes: &[Node<W>],
+    packets: &[TriPacket],
+    ray: &Ray,
+) -> bool {
     let Some(shear) = RayShear::new(ray) else {
         return false;
     };
     let lanes = RayShearLanes::<S>::new(&shear);
-    let rb = RayBox::<S>::new(ray);
+    let rb = RayBox::<W, B>::new(ray);
     let t_min = S::splat(ray.t_min);
     let t_max = S::splat(ray.t_max);
-    let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
-    let mut sp = 0usize;
+    let (box_t_min, box_t_max) = (B::splat(ray.t_min), B::splat(ray.t_max));
+    let mut stack = Stack::<u32>::new();
     let mut code = 0u32;
     loop {
         if code & LEAF_BIT == 0 {
-            let node = &nodes[code as usize];
-            let (mut m, _) = rb.test(node, t_min, t_max);
+            let node = node_at(nodes, code);
+            let (mut m, _) = rb.test(node, box_t_min, box_t_max);
             if m != 0 {
-                let i0 = m.trailing_zeros() as usize;
+                let i0 = m.trailing_zeros();
                 m &= m - 1;
                 while m != 0 {
-                    let i = m.trailing_zeros() as usize;
+                    let i = m.trailing_zeros();
                     m &= m - 1;
-                    stack[sp].write(node.child[i]);
-                    sp += 1;
+                    stack.push(child(node, i));
                 }
-                code = node.child[i0];
+                code = child(node, i0);
                 continue;
             }
         } else {
-            let (first, count) = leaf_range(code);
-            for p in &packets[first..first + count] {
+            for p in leaf_at(packets, code) {
                 let h = intersect_packet(p, &lanes, t_min, t_max);
                 if h.hits != 0 {
                     return true;
@@ -211,11 +308,9 @@ pub(crate) fn occluded<S: F32x4>(nodes: &[Node4], packets: &[TriPacket], ray: &R
                 }
             }
         }
-        if sp == 0 {
-            return false;
+        match stack.pop() {
+            Some(c) => code = c,
+            None => return false,
         }
-        sp -= 1;
-        // SAFETY: entries below `sp` were all written before.
-        code = unsafe { stack[sp].assume_init() };
     }
 }

@@ -1,7 +1,7 @@
-//! The 4-wide BVH the traversal runs on, collapsed from the binary one.
+//! The wide BVH the traversal runs on, collapsed from the binary one.
 //!
-//! A [`Node4`] holds its four children's boxes in structure-of-arrays layout (one `[f32; 4]`
-//! per bound and axis, ready for one SSE register) and their codes. A child code is either a
+//! A [`Node`] holds its `W` children's boxes in structure-of-arrays layout (one `[f32; W]` per
+//! bound and axis, ready for one SIMD register, or two SSE ones when `W = 8`) and their codes. A child code is either a
 //! node index, or a leaf: bit 31 set, the number of triangle packets in bits 28..31 and the
 //! first packet in bits 0..28. Unused child slots hold an inverted (empty) box, which no ray
 //! hits, and a leaf code with no packets.
@@ -18,25 +18,28 @@ const FIRST_MASK: u32 = (1 << COUNT_SHIFT) - 1;
 /// The code of an unused child slot.
 pub(crate) const EMPTY_CHILD: u32 = LEAF_BIT;
 
-/// Four children: `b[2 * axis + 0]` their minima along `axis`, `b[2 * axis + 1]` their maxima.
+/// The branching factor of the native BVH.
+pub(crate) const WIDTH: usize = 8;
+
+/// `W` children: `b[2 * axis + 0]` their minima along `axis`, `b[2 * axis + 1]` their maxima.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub(crate) struct Node4 {
-    pub b: [[f32; 4]; 6],
-    pub child: [u32; 4],
+pub(crate) struct Node<const W: usize> {
+    pub b: [[f32; W]; 6],
+    pub child: [u32; W],
 }
 
-impl Node4 {
-    const EMPTY: Node4 = Node4 {
+impl<const W: usize> Node<W> {
+    const EMPTY: Self = Node {
         b: [
-            [f32::INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
+            [f32::INFINITY; W],
+            [f32::NEG_INFINITY; W],
+            [f32::INFINITY; W],
+            [f32::NEG_INFINITY; W],
+            [f32::INFINITY; W],
+            [f32::NEG_INFINITY; W],
         ],
-        child: [EMPTY_CHILD; 4],
+        child: [EMPTY_CHILD; W],
     };
 
     fn set(&mut self, slot: usize, bounds: &Aabb, code: u32) {
@@ -64,10 +67,10 @@ fn leaf_code(first: usize, count: usize) -> u32 {
     LEAF_BIT | (count as u32) << COUNT_SHIFT | first as u32
 }
 
-/// The 4-wide BVH with its triangles.
-pub(crate) struct Wide {
+/// The wide BVH with its triangles.
+pub(crate) struct Wide<const W: usize> {
     /// `nodes[0]` is the root.
-    pub nodes: Vec<Node4>,
+    pub nodes: Vec<Node<W>>,
     pub packets: Vec<TriPacket>,
     pub leaves: usize,
     pub depth: u32,
@@ -76,19 +79,19 @@ pub(crate) struct Wide {
     pub sah_cost: f64,
 }
 
-struct Collapser<'a> {
+struct Collapser<'a, const W: usize> {
     prims: &'a [u32],
     corners: &'a [[Vec3; 3]],
-    nodes: Vec<Node4>,
+    nodes: Vec<Node<W>>,
     packets: Vec<TriPacket>,
     leaves: usize,
     depth: u32,
     weighted_cost: f64,
 }
 
-/// Collapses `bvh` (over indices into `corners`) into a 4-wide BVH; packet lanes carry the
+/// Collapses `bvh` (over indices into `corners`) into a `W`-wide BVH; packet lanes carry the
 /// indices.
-pub(crate) fn collapse(bvh: &Bvh2, corners: &[[Vec3; 3]]) -> Wide {
+pub(crate) fn collapse<const W: usize>(bvh: &Bvh2, corners: &[[Vec3; 3]]) -> Wide<W> {
     let mut c = Collapser {
         prims: &bvh.prims,
         corners,
@@ -100,10 +103,10 @@ pub(crate) fn collapse(bvh: &Bvh2, corners: &[[Vec3; 3]]) -> Wide {
     };
     let mut root_area = 0.0;
     match &bvh.root {
-        None => c.nodes.push(Node4::EMPTY),
+        None => c.nodes.push(Node::EMPTY),
         Some(leaf @ Node2::Leaf { bounds, .. }) => {
             root_area = bounds.half_area();
-            c.nodes.push(Node4::EMPTY);
+            c.nodes.push(Node::EMPTY);
             c.weighted_cost += TRAVERSAL_COST * root_area;
             let code = c.emit(leaf, 1);
             c.nodes[0].set(0, bounds, code);
@@ -127,7 +130,7 @@ pub(crate) fn collapse(bvh: &Bvh2, corners: &[[Vec3; 3]]) -> Wide {
     }
 }
 
-impl Collapser<'_> {
+impl<const W: usize> Collapser<'_, W> {
     /// Emits `node` and its subtree; returns its child code.
     fn emit(&mut self, node: &Node2, depth: u32) -> u32 {
         self.depth = self.depth.max(depth);
@@ -151,9 +154,9 @@ impl Collapser<'_> {
                 leaf_code(start, self.packets.len() - start)
             }
             Node2::Inner { bounds, children } => {
-                // Open the largest inner child until there are four.
+                // Open the largest inner child until there are `W`.
                 let mut kids: Vec<&Node2> = vec![&children[0], &children[1]];
-                while kids.len() < 4 {
+                while kids.len() < W {
                     let widest = kids
                         .iter()
                         .enumerate()
@@ -172,7 +175,7 @@ impl Collapser<'_> {
                     kids.insert(i + 1, &children[1]);
                 }
                 let index = self.nodes.len();
-                self.nodes.push(Node4::EMPTY);
+                self.nodes.push(Node::EMPTY);
                 self.weighted_cost += TRAVERSAL_COST * bounds.half_area();
                 for (slot, kid) in kids.into_iter().enumerate() {
                     let code = self.emit(kid, depth + 1);

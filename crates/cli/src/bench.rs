@@ -1,0 +1,508 @@
+//! `pathlight bench`: measurements. `bench rays` times the ray tracing backends on fixed ray
+//! sets (camera, diffuse bounce and shadow rays) and checks that they agree ray by ray.
+
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use pathlight_accel::{Accel, Hit, NativeBvh, Ray, RayKind, RaySets, SceneTriangles};
+use rayon::prelude::*;
+use serde_json::json;
+
+use crate::scene_args::SceneArgs;
+
+#[derive(Debug, Clone, Args)]
+pub struct BenchArgs {
+    #[command(subcommand)]
+    pub command: BenchCommand,
+}
+
+#[derive(Debug, Clone, Subcommand)]
+pub enum BenchCommand {
+    /// Trace fixed ray sets (primary, bounce, shadow) with each backend: build time, memory,
+    /// median Mrays/s, and ray-by-ray agreement between the backends.
+    Rays(RaysArgs),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BackendChoice {
+    /// pathlight's own BVH.
+    Native,
+    /// Intel Embree 3 (needs a build with the `embree` feature).
+    Embree,
+    /// Every backend compiled in.
+    All,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EmbreeQuality {
+    Low,
+    Medium,
+    High,
+}
+
+#[derive(Debug, Clone, Args)]
+pub struct RaysArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+
+    /// Which backend to measure.
+    #[arg(long, value_enum, default_value_t = BackendChoice::All)]
+    pub backend: BackendChoice,
+
+    /// Threads tracing (and building): a pool of exactly this many [default: all cores].
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+
+    /// Image width: one primary ray per pixel.
+    #[arg(long, value_name = "W", default_value_t = 1024)]
+    pub width: u32,
+
+    /// Image height.
+    #[arg(long, value_name = "H", default_value_t = 1024)]
+    pub height: u32,
+
+    /// Times each set is traced; the median is reported.
+    #[arg(long, value_name = "R", default_value_t = 5)]
+    pub repeat: usize,
+
+    /// Seed of the bounce directions and light samples.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub seed: u64,
+
+    /// Embree's build quality: low, medium (Embree's default) or high (spatial splits).
+    #[arg(long, value_enum, value_name = "Q", default_value_t = EmbreeQuality::High)]
+    pub embree_quality: EmbreeQuality,
+
+    /// Build Embree without RTC_SCENE_FLAG_ROBUST (faster, not watertight; Embree's default).
+    #[arg(long)]
+    pub embree_no_robust: bool,
+
+    /// Print one JSON object per (backend, kind) on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &BenchArgs) -> Result<()> {
+    match &args.command {
+        BenchCommand::Rays(a) => run_rays(a),
+    }
+}
+
+/// Backend names compiled into this binary.
+pub fn compiled_backends() -> Vec<&'static str> {
+    let mut v = vec!["native"];
+    if cfg!(feature = "embree") {
+        v.push("embree");
+    }
+    v
+}
+
+fn selected_backends(choice: BackendChoice) -> Result<Vec<&'static str>> {
+    Ok(match choice {
+        BackendChoice::Native => vec!["native"],
+        BackendChoice::Embree => {
+            if !cfg!(feature = "embree") {
+                bail!(
+                    "backend embree: pathlight was built without the embree feature \
+                     (rebuild with `--features embree`; it needs libembree-dev)"
+                );
+            }
+            vec!["embree"]
+        }
+        BackendChoice::All => compiled_backends(),
+    })
+}
+
+/// Builds a backend other than the native one.
+fn build_other(name: &str, tris: &SceneTriangles, args: &RaysArgs) -> Result<Box<dyn Accel>> {
+    match name {
+        #[cfg(feature = "embree")]
+        "embree" => {
+            use pathlight_accel::embree3::BuildQuality;
+            let options = pathlight_accel::EmbreeOptions {
+                quality: match args.embree_quality {
+                    EmbreeQuality::Low => BuildQuality::LOW,
+                    EmbreeQuality::Medium => BuildQuality::MEDIUM,
+                    EmbreeQuality::High => BuildQuality::HIGH,
+                },
+                robust: !args.embree_no_robust,
+                ..Default::default()
+            };
+            log::info!("embree: {}", options.describe());
+            Ok(Box::new(pathlight_accel::EmbreeAccel::with_options(
+                tris, options,
+            )?))
+        }
+        _ => {
+            let _ = (tris, args);
+            bail!("unknown backend {name}")
+        }
+    }
+}
+
+/// Results of one set, for the agreement check.
+enum Results {
+    Hits(Vec<Option<Hit>>),
+    Occluded(Vec<bool>),
+}
+
+/// Rays per work item handed to the pool.
+const CHUNK: usize = 256;
+
+/// Traces `rays` once on the current pool, one ray at a time per backend call.
+fn trace(accel: &dyn Accel, kind: RayKind, rays: &[Ray], out: &mut Results) {
+    match out {
+        Results::Hits(h) => h
+            .par_chunks_mut(CHUNK)
+            .zip(rays.par_chunks(CHUNK))
+            .for_each(|(h, r)| {
+                for (h, r) in h.iter_mut().zip(r) {
+                    *h = accel.intersect(r);
+                }
+            }),
+        Results::Occluded(o) => o
+            .par_chunks_mut(CHUNK)
+            .zip(rays.par_chunks(CHUNK))
+            .for_each(|(o, r)| {
+                for (o, r) in o.iter_mut().zip(r) {
+                    *o = accel.occluded(r);
+                }
+            }),
+    }
+    debug_assert_eq!(kind.is_occlusion(), matches!(out, Results::Occluded(_)));
+}
+
+fn empty_results(kind: RayKind, n: usize) -> Results {
+    if kind.is_occlusion() {
+        Results::Occluded(vec![false; n])
+    } else {
+        Results::Hits(vec![None; n])
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Two closest-hit answers agree: both miss, the same triangle, or distances within
+/// `1e-4 * max(1, |t|)` (near-ties between triangles).
+pub fn hits_agree(a: &Option<Hit>, b: &Option<Hit>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(x), Some(y)) => {
+            (x.instance, x.triangle) == (y.instance, y.triangle)
+                || (x.t - y.t).abs() <= 1e-4 * x.t.abs().max(1.0)
+        }
+        _ => false,
+    }
+}
+
+/// Counts the rays where `a` and `b` disagree; logs the first few at info level (`-v`).
+fn mismatches(
+    backend: &str,
+    reference: &str,
+    kind: RayKind,
+    rays: &[Ray],
+    a: &Results,
+    b: &Results,
+) -> usize {
+    let bad: Vec<usize> = match (a, b) {
+        (Results::Hits(a), Results::Hits(b)) => (0..rays.len())
+            .filter(|&i| !hits_agree(&a[i], &b[i]))
+            .collect(),
+        (Results::Occluded(a), Results::Occluded(b)) => {
+            (0..rays.len()).filter(|&i| a[i] != b[i]).collect()
+        }
+        _ => unreachable!("results of different kinds"),
+    };
+    for &i in bad.iter().take(5) {
+        let (x, y) = match (a, b) {
+            (Results::Hits(a), Results::Hits(b)) => (format!("{:?}", a[i]), format!("{:?}", b[i])),
+            (Results::Occluded(a), Results::Occluded(b)) => {
+                (format!("occluded {}", a[i]), format!("occluded {}", b[i]))
+            }
+            _ => unreachable!(),
+        };
+        log::info!(
+            "{kind} ray {i} {:?}: {backend} {x}, {reference} {y}",
+            rays[i],
+            kind = kind.name()
+        );
+    }
+    bad.len()
+}
+
+/// One (backend, kind) measurement.
+struct Row {
+    backend: &'static str,
+    kind: RayKind,
+    rays: usize,
+    mrays_per_s: f64,
+    /// Slowest and fastest repeat, Mrays/s.
+    range: (f64, f64),
+    build_ms: f64,
+    memory_bytes: usize,
+    mismatches: usize,
+}
+
+fn run_rays(args: &RaysArgs) -> Result<()> {
+    let backends = selected_backends(args.backend)?;
+    let threads = match args.threads {
+        Some(0) => bail!("--threads must be at least 1"),
+        Some(t) => t,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    if args.width == 0 || args.height == 0 {
+        bail!("--width and --height must be at least 1");
+    }
+    if args.repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("creating the thread pool")?;
+
+    let options = args.scene.load_options();
+    let path = args.scene.scene.as_deref();
+    let start = Instant::now();
+    let scene = pathlight_scene::load(path, &options)?;
+    log::info!(
+        "loaded {} in {:.0} ms",
+        path.map_or("the built-in Cornell box".into(), |p| p
+            .display()
+            .to_string()),
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    let tris = SceneTriangles::from_scene(&scene);
+    let mtri = tris.len() as f64 / 1e6;
+
+    // The native BVH is the reference: it finds the hits the bounce and shadow rays start
+    // from, and every other backend is checked against its answers.
+    let start = Instant::now();
+    let native = pool.install(|| NativeBvh::new(&tris));
+    let native_build_ms = start.elapsed().as_secs_f64() * 1e3;
+    log::info!("{}", native.stats());
+    let start = Instant::now();
+    let sets =
+        pool.install(|| RaySets::generate(&scene, &native, args.width, args.height, args.seed));
+    log::info!(
+        "ray sets: {} primary, {} bounce, {} shadow ({:?} lights) in {:.0} ms",
+        sets.primary.len(),
+        sets.bounce.len(),
+        sets.shadow.len(),
+        sets.lights,
+        start.elapsed().as_secs_f64() * 1e3
+    );
+
+    // Reference answers, traced once.
+    let reference: Vec<Results> = RayKind::ALL
+        .iter()
+        .map(|&kind| {
+            let rays = sets.get(kind);
+            let mut out = empty_results(kind, rays.len());
+            pool.install(|| trace(&native, kind, rays, &mut out));
+            out
+        })
+        .collect();
+
+    // Build every backend first, then trace the runs of the backends in turn (native, embree,
+    // native, ...), so that a change in the machine's load hits them alike.
+    // (name, the backend unless it is the native one, build ms)
+    type Built = (&'static str, Option<Box<dyn Accel>>, f64);
+    let mut built: Vec<Built> = Vec::new();
+    for &name in &backends {
+        if name == "native" {
+            built.push((name, None, native_build_ms));
+        } else {
+            let start = Instant::now();
+            let b = pool.install(|| build_other(name, &tris, args))?;
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            log::info!("{name}: built in {ms:.1} ms");
+            built.push((name, Some(b), ms));
+        }
+    }
+    let accels: Vec<&dyn Accel> = built
+        .iter()
+        .map(|(_, b, _)| b.as_deref().unwrap_or(&native as &dyn Accel))
+        .collect();
+
+    let mut rows = Vec::new();
+    for (k, &kind) in RayKind::ALL.iter().enumerate() {
+        let rays = sets.get(kind);
+        let mut outs: Vec<Results> = accels
+            .iter()
+            .map(|_| empty_results(kind, rays.len()))
+            .collect();
+        let mut rates = vec![Vec::with_capacity(args.repeat); accels.len()];
+        for _ in 0..args.repeat {
+            for (i, &accel) in accels.iter().enumerate() {
+                let out = &mut outs[i];
+                let start = Instant::now();
+                pool.install(|| trace(accel, kind, rays, out));
+                let s = start.elapsed().as_secs_f64();
+                rates[i].push(rays.len() as f64 / s.max(1e-12) / 1e6);
+            }
+        }
+        for (i, (name, _, build_ms)) in built.iter().enumerate() {
+            let r = &mut rates[i];
+            let range = (
+                r.iter().copied().fold(f64::INFINITY, f64::min),
+                r.iter().copied().fold(0.0, f64::max),
+            );
+            let bad = mismatches(name, "native", kind, rays, &outs[i], &reference[k]);
+            rows.push(Row {
+                backend: name,
+                kind,
+                rays: rays.len(),
+                mrays_per_s: median(r),
+                range,
+                build_ms: *build_ms,
+                memory_bytes: accels[i].memory_bytes(),
+                mismatches: bad,
+            });
+        }
+    }
+    // Rows by backend, then kind.
+    rows.sort_by_key(|r| {
+        let b = backends.iter().position(|&n| n == r.backend);
+        let k = RayKind::ALL.iter().position(|&x| x == r.kind);
+        (b, k)
+    });
+
+    if args.json {
+        for r in &rows {
+            println!(
+                "{}",
+                json!({
+                    "backend": r.backend,
+                    "kind": r.kind.name(),
+                    "rays": r.rays,
+                    "mrays_per_s": r.mrays_per_s,
+                    "threads": threads,
+                    "build_ms": r.build_ms,
+                    "memory_bytes": r.memory_bytes,
+                    "mismatches": r.mismatches,
+                })
+            );
+        }
+    } else {
+        print!(
+            "{}",
+            table(&scene.name, tris.len(), mtri, args, threads, &sets, &rows)
+        );
+    }
+    Ok(())
+}
+
+fn table(
+    name: &str,
+    triangles: usize,
+    mtri: f64,
+    args: &RaysArgs,
+    threads: usize,
+    sets: &RaySets,
+    rows: &[Row],
+) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let name = if name.is_empty() { "(unnamed)" } else { name };
+    let _ = writeln!(
+        s,
+        "scene {name}: {triangles} triangles; {}x{} pixels, {} threads, median of {} runs; \
+         lights: {:?}",
+        args.width, args.height, threads, args.repeat, sets.lights
+    );
+    let _ = writeln!(
+        s,
+        "{:<8} {:<8} {:>9} {:>10} {:>17} {:>10} {:>11} {:>10} {:>10}",
+        "backend", "kind", "rays", "Mrays/s", "(min-max)", "build ms", "ms/Mtri", "MiB", "mismatch"
+    );
+    for r in rows {
+        let per_mtri = if mtri > 0.0 { r.build_ms / mtri } else { 0.0 };
+        let _ = writeln!(
+            s,
+            "{:<8} {:<8} {:>9} {:>10.2} {:>17} {:>10.1} {:>11.1} {:>10.1} {:>10}",
+            r.backend,
+            r.kind.name(),
+            r.rays,
+            r.mrays_per_s,
+            format!("({:.2}-{:.2})", r.range.0, r.range.1),
+            r.build_ms,
+            per_mtri,
+            r.memory_bytes as f64 / (1024.0 * 1024.0),
+            r.mismatches
+        );
+    }
+    let find = |b: &str, k: RayKind| rows.iter().find(|r| r.backend == b && r.kind == k);
+    let ratios: Vec<String> = RayKind::ALL
+        .iter()
+        .filter_map(|&k| {
+            let (n, e) = (find("native", k)?, find("embree", k)?);
+            Some(format!(
+                "{} {:.2}x",
+                k.name(),
+                n.mrays_per_s / e.mrays_per_s.max(1e-12)
+            ))
+        })
+        .collect();
+    if !ratios.is_empty() {
+        let _ = writeln!(s, "native / embree: {}", ratios.join(", "));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hit(t: f32, triangle: u32) -> Option<Hit> {
+        Some(Hit {
+            t,
+            u: 0.0,
+            v: 0.0,
+            instance: 0,
+            triangle,
+        })
+    }
+
+    #[test]
+    fn agreement_rule() {
+        assert!(hits_agree(&None, &None));
+        assert!(!hits_agree(&None, &hit(1.0, 0)));
+        assert!(hits_agree(&hit(1.0, 3), &hit(1.5, 3)));
+        assert!(hits_agree(&hit(2.0, 3), &hit(2.00005, 4)));
+        assert!(!hits_agree(&hit(2.0, 3), &hit(2.001, 4)));
+        assert!(hits_agree(&hit(1e4, 3), &hit(1e4 + 0.5, 4)));
+    }
+
+    #[test]
+    fn median_of_odd_and_even() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
+    }
+
+    #[test]
+    fn embree_needs_the_feature() {
+        let r = selected_backends(BackendChoice::Embree);
+        if cfg!(feature = "embree") {
+            assert_eq!(r.unwrap(), vec!["embree"]);
+        } else {
+            let e = r.unwrap_err().to_string();
+            assert!(e.contains("built without the embree feature"), "{e}");
+        }
+        assert_eq!(
+            selected_backends(BackendChoice::All).unwrap(),
+            compiled_backends()
+        );
+    }
+}

@@ -1,0 +1,120 @@
+//! Smoke tests of `pathlight bench rays`: they run the built binary on the built-in Cornell box.
+
+use std::collections::BTreeSet;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+const KEYS: &[&str] = &[
+    "backend",
+    "kind",
+    "rays",
+    "mrays_per_s",
+    "threads",
+    "build_ms",
+    "memory_bytes",
+    "mismatches",
+];
+
+fn pathlight(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pathlight"))
+        .args(args)
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("run the pathlight binary")
+}
+
+fn expected_backends() -> BTreeSet<&'static str> {
+    let mut b = BTreeSet::from(["native"]);
+    if cfg!(feature = "embree") {
+        b.insert("embree");
+    }
+    b
+}
+
+#[test]
+fn bench_rays_json_on_the_cornell_box() {
+    let out = pathlight(&[
+        "bench",
+        "rays",
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--repeat",
+        "1",
+        "--threads",
+        "2",
+        "--json",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{}\n{stdout}\n{stderr}", out.status);
+    let lines: Vec<Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l:?}")))
+        .collect();
+    assert!(lines.len() >= 3, "{stdout}");
+    let mut seen = BTreeSet::new();
+    for v in &lines {
+        let obj = v.as_object().expect("an object");
+        let keys: BTreeSet<&str> = obj.keys().map(String::as_str).collect();
+        assert_eq!(keys, KEYS.iter().copied().collect(), "{v}");
+        assert_eq!(v["mismatches"], 0, "{v}");
+        assert_eq!(v["threads"], 2, "{v}");
+        assert!(v["mrays_per_s"].as_f64().unwrap() > 0.0, "{v}");
+        assert!(v["rays"].as_u64().unwrap() > 0, "{v}");
+        let kind = v["kind"].as_str().unwrap();
+        assert!(["primary", "bounce", "shadow"].contains(&kind), "{v}");
+        if kind == "primary" {
+            assert_eq!(v["rays"], 64 * 64);
+        }
+        seen.insert((v["backend"].as_str().unwrap().to_owned(), kind.to_owned()));
+    }
+    let backends: BTreeSet<&str> = seen.iter().map(|(b, _)| b.as_str()).collect();
+    assert_eq!(backends, expected_backends());
+    assert_eq!(seen.len(), 3 * expected_backends().len());
+}
+
+#[test]
+fn bench_rays_table_and_backend_choice() {
+    let out = pathlight(&[
+        "bench",
+        "rays",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--repeat",
+        "1",
+        "--backend",
+        "native",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    assert!(
+        stdout.contains("native") && stdout.contains("shadow"),
+        "{stdout}"
+    );
+
+    let out = pathlight(&[
+        "bench",
+        "rays",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--backend",
+        "embree",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if cfg!(feature = "embree") {
+        assert!(out.status.success(), "{stderr}");
+    } else {
+        assert_eq!(out.status.code(), Some(2));
+        assert!(
+            stderr.contains("built without the embree feature"),
+            "{stderr}"
+        );
+    }
+}
