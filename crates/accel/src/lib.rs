@@ -7,6 +7,7 @@ mod bvh;
 #[cfg(feature = "embree")]
 pub mod embree;
 pub mod geometry;
+pub mod instanced;
 pub mod native;
 pub mod ray;
 pub mod rays;
@@ -20,6 +21,7 @@ pub use embree::{EmbreeAccel, EmbreeError, EmbreeOptions};
 #[cfg(feature = "embree")]
 pub use embree3;
 pub use geometry::SceneTriangles;
+pub use instanced::InstancedBvh;
 pub use native::{BuildStats, Isa, NativeBvh};
 pub use ray::{Hit, Ray};
 pub use rays::{RayKind, RaySets};
@@ -55,4 +57,24 @@ pub trait Accel: Send + Sync {
 
     /// Heap bytes held by the structure (nodes and triangle data).
     fn memory_bytes(&self) -> usize;
+}
+
+/// True when some mesh is placed by more than one instance (two-level instancing pays off).
+pub fn has_shared_meshes(scene: &pathlight_scene::Scene) -> bool {
+    let mut uses = vec![0u32; scene.meshes.len()];
+    scene.instances.iter().any(|i| {
+        let u = &mut uses[i.mesh as usize];
+        *u += 1;
+        *u > 1
+    })
+}
+
+/// The native structure for a scene: an [`InstancedBvh`] when some mesh is used by more than
+/// one instance, otherwise a [`NativeBvh`] over the flattened world-space triangles.
+pub fn build_accel(scene: &pathlight_scene::Scene) -> Box<dyn Accel> {
+    if has_shared_meshes(scene) {
+        Box::new(InstancedBvh::new(scene))
+    } else {
+        Box::new(NativeBvh::new(&SceneTriangles::from_scene(scene)))
+    }
 }
