@@ -28,21 +28,9 @@ fn configurations() -> Vec<EmbreeOptions> {
 }
 
 fn check_all(tris: &SceneTriangles, rays: &[Ray]) -> Tally {
-    let brute = BruteForce::new(tris.clone());
-    let corners = Corners::new(tris);
-    let mut total = Tally::default();
-    for options in configurations() {
-        let embree = EmbreeAccel::with_options(tris, options).unwrap();
-        let mut tally = Tally::default();
-        for r in rays {
-            compare(&embree, &brute, &corners, r, &mut tally);
-        }
-        assert_eq!(tally.wrong, 0, "{}: {tally:?}", options.describe());
-        total.rays += tally.rays;
-        total.hits += tally.hits;
-        total.miss_mismatch += tally.miss_mismatch;
-    }
-    total
+    check_backends(tris, rays, configurations(), |tris, options| {
+        Box::new(EmbreeAccel::with_options(tris, *options).unwrap())
+    })
 }
 
 #[test]

@@ -11,21 +11,9 @@ use glam::Vec3;
 use pathlight_accel::{Accel, BruteForce, Isa, NativeBvh, Ray, SceneTriangles};
 
 fn check_all(tris: &SceneTriangles, rays: &[Ray]) -> Tally {
-    let brute = BruteForce::new(tris.clone());
-    let corners = Corners::new(tris);
-    let mut total = Tally::default();
-    for isa in Isa::supported() {
-        let native = NativeBvh::with_isa(tris, isa);
-        let mut tally = Tally::default();
-        for r in rays {
-            compare(&native, &brute, &corners, r, &mut tally);
-        }
-        assert_eq!(tally.wrong, 0, "{isa:?}: {tally:?}");
-        total.rays += tally.rays;
-        total.hits += tally.hits;
-        total.miss_mismatch += tally.miss_mismatch;
-    }
-    total
+    check_backends(tris, rays, Isa::supported(), |tris, isa| {
+        Box::new(NativeBvh::with_isa(tris, *isa))
+    })
 }
 
 #[test]

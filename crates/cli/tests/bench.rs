@@ -1,9 +1,12 @@
 //! Smoke tests of `pathlight bench rays`: they run the built binary on the built-in Cornell box.
 
 use std::collections::BTreeSet;
-use std::process::{Command, Output};
 
 use serde_json::Value;
+
+mod common;
+
+use common::*;
 
 const KEYS: &[&str] = &[
     "backend",
@@ -15,14 +18,6 @@ const KEYS: &[&str] = &[
     "memory_bytes",
     "mismatches",
 ];
-
-fn pathlight(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pathlight"))
-        .args(args)
-        .env_remove("RUST_LOG")
-        .output()
-        .expect("run the pathlight binary")
-}
 
 fn expected_backends() -> BTreeSet<&'static str> {
     let mut b = BTreeSet::from(["native"]);

@@ -2,9 +2,13 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use serde_json::Value;
+
+mod common;
+
+use common::*;
 
 /// Keys `info --json` promises.
 const REQUIRED_KEYS: &[&str] = &[
@@ -26,22 +30,6 @@ const REQUIRED_KEYS: &[&str] = &[
     "peak_rss_bytes",
     "warnings",
 ];
-
-fn pathlight(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pathlight"))
-        .args(args)
-        .env_remove("RUST_LOG")
-        .output()
-        .expect("run the pathlight binary")
-}
-
-fn stdout(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// Runs `pathlight info --json <args>`, checks it succeeded and parses its last stdout line.
 fn info_json(args: &[&str]) -> Value {

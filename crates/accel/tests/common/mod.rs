@@ -248,3 +248,28 @@ pub fn load_shared(rel: &str) -> Option<SceneTriangles> {
         .unwrap_or_else(|e| panic!("{e}"));
     Some(SceneTriangles::from_scene(&scene))
 }
+
+/// Checks every backend `configurations` builds against the brute force on `rays`: no wrong hit
+/// for any of them; returns the summed tally (hits and miss disagreements) for the caller to bound.
+pub fn check_backends<C: std::fmt::Debug>(
+    tris: &SceneTriangles,
+    rays: &[Ray],
+    configurations: impl IntoIterator<Item = C>,
+    build: impl Fn(&SceneTriangles, &C) -> Box<dyn Accel>,
+) -> Tally {
+    let brute = BruteForce::new(tris.clone());
+    let corners = Corners::new(tris);
+    let mut total = Tally::default();
+    for config in configurations {
+        let accel = build(tris, &config);
+        let mut tally = Tally::default();
+        for r in rays {
+            compare(accel.as_ref(), &brute, &corners, r, &mut tally);
+        }
+        assert_eq!(tally.wrong, 0, "{config:?}: {tally:?}");
+        total.rays += tally.rays;
+        total.hits += tally.hits;
+        total.miss_mismatch += tally.miss_mismatch;
+    }
+    total
+}

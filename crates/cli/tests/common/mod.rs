@@ -1,0 +1,22 @@
+//! Helpers shared by the CLI's end-to-end tests: running the built binary.
+
+#![allow(dead_code)]
+
+use std::process::{Command, Output};
+
+/// Runs the built `pathlight` binary with `args` (without the caller's `RUST_LOG`).
+pub fn pathlight(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pathlight"))
+        .args(args)
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("run the pathlight binary")
+}
+
+pub fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
