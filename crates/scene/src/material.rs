@@ -139,6 +139,10 @@ pub struct Material {
     pub volume: Option<Volume>,
     pub alpha_mode: AlphaMode,
     pub double_sided: bool,
+    /// Whether emission leaves the back face too. glTF: `double_sided` (the material is the same
+    /// on both sides); OBJ: false, the emitter shines from its front face only (the winding's
+    /// side), as area lights do in Mitsuba and pbrt.
+    pub emits_from_back: bool,
 }
 
 impl Default for Material {
@@ -168,6 +172,7 @@ impl Default for Material {
             volume: None,
             alpha_mode: AlphaMode::Opaque,
             double_sided: false,
+            emits_from_back: false,
         }
     }
 }

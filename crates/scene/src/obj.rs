@@ -40,7 +40,7 @@
 //! | `Ks` absent or 0, or `illum` 0 or 1 | `specular = 0`: exactly Lambertian |
 //! | `Ks` > 0 | `specular = 1`, `specular_color = Ks / F0(ior)` so that [`Material::dielectric_f0`] = `Ks` (clamped to 1) |
 //! | `Ns` | `roughness = sqrt(alpha)` with the Phong-to-Beckmann/GGX `alpha = sqrt(2 / (Ns + 2))`, in [0, 1]; `Ns` absent counts as 0 (roughness 1) |
-//! | `Ke` | `emissive` |
+//! | `Ke` | `emissive`, from the front face only (`emits_from_back = false`): the side the face's winding (counter-clockwise) faces, as area emitters in Mitsuba and pbrt |
 //! | `Ni` | `ior` when `Ni > 1`; otherwise (absent, or `Ni <= 1`, which exporters write as a placeholder and which would leave a dielectric no reflection at all) 1.5 |
 //! | `d` (or `1 - Tr`; `d` wins when both are given) | `d < 1`: `AlphaMode::Blend` and `base_color.w = d` |
 //! | `map_Kd` | `base_color_texture` (sRGB; multiplied by `Kd`, as in glTF) |

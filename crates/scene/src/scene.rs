@@ -115,14 +115,14 @@ impl Scene {
                 if radiance.max_element() <= 0.0 {
                     continue;
                 }
-                let sides = if mat.double_sided { 2.0 } else { 1.0 };
+                let sides = if mat.emits_from_back { 2.0 } else { 1.0 };
                 out.push(EmissiveTriangle {
                     instance: ii as u32,
                     triangle: t as u32,
                     area,
                     radiance,
                     power: radiance * (std::f32::consts::PI * area * sides),
-                    two_sided: mat.double_sided,
+                    two_sided: mat.emits_from_back,
                 });
             }
         }

@@ -183,6 +183,7 @@ impl<'a> MaterialConverter<'a> {
             roughness: pbr.roughness_factor.0,
             emissive: Vec3::from(m.emissive_factor.0),
             double_sided: m.double_sided,
+            emits_from_back: m.double_sided,
             ..Material::default()
         };
         out.base_color_texture = self.info(&pbr.base_color_texture, ColorSpace::Srgb, warnings);
