@@ -22,7 +22,8 @@ mi.set_variant('scalar_rgb')
 
 DEFAULT_OBJ = os.path.join(
     os.path.dirname(os.path.abspath(__file__)),
-    '..', '..', '..', 'shared', 'scenes', 'CornellBox', 'CornellBox-Original.obj')
+    '..', '..', '..', 'shared', 'scenes', 'CornellBox',
+    'CornellBox-Original.obj')
 
 
 def parse_mtl(path):

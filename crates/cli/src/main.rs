@@ -1,6 +1,6 @@
 //! `pathlight`: the command-line front end of the path tracer.
 //!
-//! One subcommand per job. Today `info` and `bench` exist; `render`, `view`, `play` and `eval`
+//! One subcommand per job. Today `info`, `render` and `bench` exist; `view`, `play` and `eval`
 //! will slot in as further [`Command`] variants, each flattening the shared [`SceneArgs`] so that
 //! every command loads scenes the same way.
 //!
@@ -10,6 +10,7 @@
 mod bench;
 mod info;
 mod memory;
+mod render;
 mod scene_args;
 
 use std::io::Write;
@@ -36,6 +37,9 @@ pub struct Cli {
 pub enum Command {
     /// Load a scene and print its statistics (counts, bounds, load time, peak memory).
     Info(info::InfoArgs),
+    /// Render an image with the reference path tracer (the built-in Cornell box without a
+    /// scene).
+    Render(render::RenderArgs),
     /// Measure: `bench rays` times the ray tracing backends on fixed ray sets.
     Bench(bench::BenchArgs),
 }
@@ -70,6 +74,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Bench(args) => bench::run(&args),
+        Command::Render(args) => render::run(&args),
     }
 }
 

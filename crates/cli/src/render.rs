@@ -1,0 +1,369 @@
+//! `pathlight render`: a converged image from the reference path tracer, with a progress bar,
+//! Ctrl-C that keeps what is done, periodic checkpoints and `--resume`.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use pathlight_render::bsdf::Microfacet;
+use pathlight_render::checkpoint::{self, Header};
+use pathlight_render::output::write_film;
+use pathlight_render::renderer::{pass_targets, render_pass};
+use pathlight_render::{Config, Film, World};
+
+use crate::memory::peak_rss_bytes;
+use crate::SceneArgs;
+
+/// Largest image side accepted.
+const MAX_SIDE: u32 = 16384;
+/// Largest sample count accepted.
+const MAX_SPP: u32 = 1 << 24;
+/// Most samples per pixel in one pass (checkpoint and Ctrl-C granularity).
+const MAX_PASS: u32 = 16;
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+
+    /// Samples per pixel.
+    #[arg(long, value_name = "N", default_value_t = 64)]
+    pub spp: u32,
+
+    /// Image width in pixels [default: 512].
+    #[arg(long, value_name = "W")]
+    pub width: Option<u32>,
+
+    /// Image height in pixels [default: from the width and the camera's aspect ratio, square
+    /// when the camera has none].
+    #[arg(long, value_name = "H")]
+    pub height: Option<u32>,
+
+    /// Output image: .png (tone-mapped sRGB) or .exr (linear HDR RGB).
+    #[arg(long, value_name = "FILE", default_value = "render.png")]
+    pub out: PathBuf,
+
+    /// Seed of every random decision.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub seed: u64,
+
+    /// Worker threads [default: all cores].
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+
+    /// Maximum scattering events per path [default: unlimited, Russian roulette ends paths].
+    #[arg(long, value_name = "B")]
+    pub max_bounces: Option<u32>,
+
+    /// Camera position (overrides the scene's camera).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_from: Option<[f32; 3]>,
+
+    /// Point the camera looks at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_at: Option<[f32; 3]>,
+
+    /// Camera up direction.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<[f32; 3]>,
+
+    /// Vertical field of view.
+    #[arg(long, value_name = "DEGREES")]
+    pub fov_y: Option<f32>,
+
+    /// Thin-lens radius in scene units (depth of field); 0 is a pinhole.
+    #[arg(long, value_name = "R", default_value_t = 0.0)]
+    pub lens_radius: f32,
+
+    /// Distance in focus [default: what the image centre sees].
+    #[arg(long, value_name = "D")]
+    pub focus_distance: Option<f32>,
+
+    /// Microfacet distribution of glossy lobes.
+    #[arg(long, value_enum, default_value = "ggx")]
+    pub microfacet: MicrofacetArg,
+
+    /// With an .exr output: also write albedo, normal, depth, direct, indirect, variance and
+    /// spp layers.
+    #[arg(long)]
+    pub aovs: bool,
+
+    /// Exposure multiplier for .png output.
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    pub exposure: f32,
+
+    /// Checkpoint file [default: OUT with `.checkpoint` appended].
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
+
+    /// Seconds between checkpoints (0: only when stopped by Ctrl-C).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    pub checkpoint_every: f64,
+
+    /// Continue from the checkpoint (same scene and settings; --spp may grow).
+    #[arg(long)]
+    pub resume: bool,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+
+    /// Print one JSON object with the timings and memory as the last line.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum MicrofacetArg {
+    Ggx,
+    Beckmann,
+}
+
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got {s:?}"));
+    }
+    let mut out = [0.0; 3];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{p:?} is not a finite number"))?;
+    }
+    Ok(out)
+}
+
+impl RenderArgs {
+    /// The render configuration for a scene whose camera has aspect ratio `aspect`.
+    fn config(&self, aspect: Option<f32>) -> Result<Config> {
+        let width = self.width.unwrap_or(512);
+        let height = self.height.unwrap_or_else(|| {
+            let a = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
+            ((width as f32 / a).round() as u32).max(1)
+        });
+        for (name, v) in [("width", width), ("height", height)] {
+            if v == 0 || v > MAX_SIDE {
+                bail!("--{name} {v}: must be between 1 and {MAX_SIDE}");
+            }
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            bail!("--spp {}: must be between 1 and {MAX_SPP}", self.spp);
+        }
+        if let Some(f) = self.fov_y {
+            if !(f > 0.0 && f < 180.0) {
+                bail!("--fov-y {f}: must be between 0 and 180 degrees");
+            }
+        }
+        if !(self.lens_radius.is_finite() && self.lens_radius >= 0.0) {
+            bail!("--lens-radius {}: must be finite and >= 0", self.lens_radius);
+        }
+        if let Some(d) = self.focus_distance {
+            if !(d.is_finite() && d > 0.0) {
+                bail!("--focus-distance {d}: must be finite and > 0");
+            }
+        }
+        if !(self.exposure.is_finite() && self.exposure >= 0.0) {
+            bail!("--exposure {}: must be finite and >= 0", self.exposure);
+        }
+        let mut config = Config {
+            width,
+            height,
+            spp: self.spp,
+            seed: self.seed,
+            max_bounces: self.max_bounces,
+            microfacet: match self.microfacet {
+                MicrofacetArg::Ggx => Microfacet::Ggx,
+                MicrofacetArg::Beckmann => Microfacet::Beckmann,
+            },
+            ..Config::default()
+        };
+        let cam = &mut config.camera;
+        cam.look_from = self.look_from;
+        cam.look_at = self.look_at;
+        cam.up = self.up;
+        cam.fov_y = self.fov_y;
+        cam.lens_radius = self.lens_radius;
+        cam.focus_distance = self.focus_distance;
+        Ok(config)
+    }
+
+    fn checkpoint_path(&self) -> PathBuf {
+        self.checkpoint.clone().unwrap_or_else(|| {
+            let mut s = self.out.clone().into_os_string();
+            s.push(".checkpoint");
+            PathBuf::from(s)
+        })
+    }
+}
+
+/// A short identity of the scene for checkpoints.
+fn scene_identity(world: &World, args: &SceneArgs) -> String {
+    let s = world.scene.stats();
+    format!(
+        "{} | {:?} | env {:?} x{} rot {} | +{} lights seed {} | {} triangles, {} materials, {} textures, {} lights",
+        world.scene.name,
+        args.scene,
+        args.env,
+        args.env_intensity,
+        args.env_rotation,
+        args.point_lights,
+        args.point_light_seed,
+        s.triangles,
+        s.materials,
+        s.textures,
+        world.lights.len()
+    )
+}
+
+pub fn run(args: &RenderArgs) -> Result<()> {
+    Format::check(&args.out)?;
+    let threads = args.threads.unwrap_or(0);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("starting the worker threads")?;
+    pool.install(|| render(args))
+}
+
+struct Format;
+impl Format {
+    fn check(out: &Path) -> Result<()> {
+        pathlight_render::output::Format::from_path(out)?;
+        Ok(())
+    }
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
+    let start = Instant::now();
+    let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
+    for w in &scene.warnings {
+        log::warn!("{w}");
+    }
+    let aspect = scene.cameras.first().and_then(|c| match c.projection {
+        pathlight_scene::Projection::Perspective { aspect, .. } => aspect,
+        pathlight_scene::Projection::Orthographic { xmag, ymag, .. } => Some(xmag / ymag),
+    });
+    let config = args.config(aspect)?;
+    let world = World::new(scene, config.light_selection);
+    let setup_ms = start.elapsed().as_secs_f64() * 1e3;
+    let camera = world.camera(&config);
+    let header = Header {
+        config: config.clone(),
+        scene: scene_identity(&world, &args.scene),
+        width: config.width,
+        height: config.height,
+    };
+    let checkpoint_path = args.checkpoint_path();
+    let mut film = if args.resume {
+        let (old, film) = checkpoint::load(&checkpoint_path)?;
+        if !old.compatible(&header) {
+            bail!(
+                "{}: the checkpoint belongs to another scene or other settings (only --spp may change)\n  checkpoint: {}\n  now:        {}",
+                checkpoint_path.display(),
+                serde_json::to_string(&old)?,
+                serde_json::to_string(&header)?
+            );
+        }
+        log::info!(
+            "resuming from {} ({} samples done)",
+            checkpoint_path.display(),
+            film.samples()
+        );
+        film
+    } else {
+        Film::new(config.width, config.height)
+    };
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        // A second Ctrl-C while the output is written is ignored; the handler can only be set
+        // once per process, which is fine for a command-line run.
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let total = config.width as u64 * config.height as u64 * config.spp as u64;
+    let bar = if args.quiet || args.json {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(total)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg} ETA {eta}",
+        )
+        .unwrap(),
+    );
+    let done = AtomicU64::new(film.samples().min(total));
+    bar.set_position(done.load(Ordering::Relaxed));
+    let render_start = Instant::now();
+    let mut last_checkpoint = Instant::now();
+    let every = Duration::from_secs_f64(args.checkpoint_every.max(0.0));
+    let mut complete = true;
+    for target in pass_targets(film.min_samples(), config.spp, MAX_PASS) {
+        let finished = render_pass(&world, &camera, &config, &mut film, target, &cancel, &|n| {
+            let d = done.fetch_add(n, Ordering::Relaxed) + n;
+            bar.set_position(d);
+        });
+        bar.set_message(format!("{target}/{} spp", config.spp));
+        if !finished {
+            complete = false;
+            break;
+        }
+        if args.checkpoint_every > 0.0 && last_checkpoint.elapsed() >= every {
+            checkpoint::save(&checkpoint_path, &header, &film)?;
+            last_checkpoint = Instant::now();
+        }
+    }
+    let render_s = render_start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    write_film(&args.out, &film, args.aovs, args.exposure)?;
+    if !complete {
+        checkpoint::save(&checkpoint_path, &header, &film)?;
+        bail!(
+            "stopped: {} written with {} of {} samples per pixel on average; continue with --resume (checkpoint {})",
+            args.out.display(),
+            film.samples() / (config.width as u64 * config.height as u64),
+            config.spp,
+            checkpoint_path.display()
+        );
+    }
+    if checkpoint_path.exists() && args.checkpoint.is_none() {
+        // The render is complete: the default checkpoint has served its purpose.
+        std::fs::remove_file(&checkpoint_path)
+            .with_context(|| format!("{}: removing the finished checkpoint", checkpoint_path.display()))?;
+    }
+    let samples = film.samples();
+    let peak = peak_rss_bytes();
+    eprintln!(
+        "{}: {}x{} at {} spp in {:.2} s ({:.2} M samples/s), setup {:.0} ms, peak memory {}",
+        args.out.display(),
+        config.width,
+        config.height,
+        config.spp,
+        render_s,
+        samples as f64 / render_s / 1e6,
+        setup_ms,
+        peak.map_or("unknown".to_owned(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64))
+    );
+    if args.json {
+        let json = serde_json::json!({
+            "out": args.out,
+            "width": config.width,
+            "height": config.height,
+            "spp": config.spp,
+            "seed": config.seed,
+            "threads": rayon::current_num_threads(),
+            "setup_ms": setup_ms,
+            "render_s": render_s,
+            "samples_per_s": samples as f64 / render_s,
+            "peak_rss_bytes": peak,
+        });
+        println!("{json}");
+    }
+    Ok(())
+}

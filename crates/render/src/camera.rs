@@ -1,0 +1,250 @@
+//! The render camera: pinhole or thin lens (seed 001's depth of field) or orthographic, with
+//! ray differentials for one-pixel steps in x and y.
+
+use glam::{Mat4, Vec2, Vec3};
+use pathlight_accel::Ray;
+use pathlight_scene::{Camera as SceneCamera, Projection};
+
+/// How the camera projects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    /// `tan(yfov / 2)`.
+    Perspective { tan_half_fov_y: f32 },
+    /// Half the view height in scene units.
+    Orthographic { half_height: f32 },
+}
+
+/// A camera ray with its differentials: the rays through the pixel one step right and one step
+/// down (same lens point), as pbrt's `RayDifferential`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraRay {
+    pub ray: Ray,
+    pub dx_origin: Vec3,
+    pub dx_direction: Vec3,
+    pub dy_origin: Vec3,
+    pub dy_direction: Vec3,
+}
+
+/// A camera set up for an image of `width` x `height` pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Camera {
+    to_world: Mat4,
+    kind: Kind,
+    width: f32,
+    height: f32,
+    /// Thin-lens radius in scene units (0: pinhole).
+    lens_radius: f32,
+    /// Distance of the plane in focus along the view direction.
+    focus_distance: f32,
+}
+
+impl Camera {
+    /// The scene camera `camera` (its aspect ratio is replaced by the image's) as a pinhole.
+    pub fn new(camera: &SceneCamera, width: u32, height: u32) -> Self {
+        let kind = match camera.projection {
+            Projection::Perspective { yfov, .. } => Kind::Perspective {
+                tan_half_fov_y: (0.5 * yfov.clamp(1e-4, 3.14)).tan(),
+            },
+            Projection::Orthographic { ymag, .. } => Kind::Orthographic {
+                half_height: ymag.abs().max(1e-6),
+            },
+        };
+        Self {
+            to_world: camera.transform,
+            kind,
+            width: width.max(1) as f32,
+            height: height.max(1) as f32,
+            lens_radius: 0.0,
+            focus_distance: 1.0,
+        }
+    }
+
+    /// Adds a thin lens of radius `lens_radius` focused at `focus_distance` (depth of field).
+    pub fn with_lens(mut self, lens_radius: f32, focus_distance: f32) -> Self {
+        self.lens_radius = lens_radius.max(0.0);
+        self.focus_distance = focus_distance.max(1e-4);
+        self
+    }
+
+    pub fn position(&self) -> Vec3 {
+        self.to_world.w_axis.truncate()
+    }
+
+    /// The unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        (-self.to_world.z_axis.truncate()).normalize()
+    }
+
+    /// The point on the image plane at distance 1 (camera space) of film position `film` in
+    /// pixels ((0, 0) the top-left corner of the image, (width, height) the bottom-right).
+    #[inline]
+    fn film_point(&self, film: Vec2) -> Vec3 {
+        let aspect = self.width / self.height;
+        let sx = 2.0 * film.x / self.width - 1.0;
+        let sy = 1.0 - 2.0 * film.y / self.height;
+        let half = match self.kind {
+            Kind::Perspective { tan_half_fov_y } => tan_half_fov_y,
+            Kind::Orthographic { half_height } => half_height,
+        };
+        Vec3::new(sx * aspect * half, sy * half, -1.0)
+    }
+
+    /// The camera-space ray through film point `film` and lens sample `lens` in [0,1)^2.
+    #[inline]
+    fn local_ray(&self, film: Vec2, lens: Vec2) -> (Vec3, Vec3) {
+        let p = self.film_point(film);
+        let (mut origin, mut dir) = match self.kind {
+            Kind::Perspective { .. } => (Vec3::ZERO, p),
+            Kind::Orthographic { .. } => (Vec3::new(p.x, p.y, 0.0), Vec3::NEG_Z),
+        };
+        if self.lens_radius > 0.0 {
+            let d = concentric_disk(lens) * self.lens_radius;
+            // The ray through the lens centre meets the focal plane at `focus`; every lens
+            // point's ray goes there too.
+            let focus = origin + dir * (self.focus_distance / -dir.z);
+            origin += Vec3::new(d.x, d.y, 0.0);
+            dir = focus - origin;
+        }
+        (origin, dir.normalize())
+    }
+
+    /// The world-space ray through film position `film` (pixels) with lens sample `lens`.
+    #[inline]
+    pub fn ray(&self, film: Vec2, lens: Vec2) -> CameraRay {
+        let world = |(o, d): (Vec3, Vec3)| {
+            (
+                self.to_world.transform_point3(o),
+                self.to_world.transform_vector3(d).normalize(),
+            )
+        };
+        let (origin, direction) = world(self.local_ray(film, lens));
+        let (dx_origin, dx_direction) = world(self.local_ray(film + Vec2::X, lens));
+        let (dy_origin, dy_direction) = world(self.local_ray(film + Vec2::Y, lens));
+        CameraRay {
+            ray: Ray::new(origin, direction),
+            dx_origin,
+            dx_direction,
+            dy_origin,
+            dy_direction,
+        }
+    }
+
+    /// The film position (pixels) where world point `p` projects, if it is in front of the
+    /// camera (pinhole geometry; used for motion vectors and reprojection).
+    pub fn project(&self, p: Vec3) -> Option<Vec2> {
+        let local = self.to_world.inverse().transform_point3(p);
+        if local.z >= 0.0 && matches!(self.kind, Kind::Perspective { .. }) {
+            return None;
+        }
+        let (half, q) = match self.kind {
+            Kind::Perspective { tan_half_fov_y } => (tan_half_fov_y, local / -local.z),
+            Kind::Orthographic { half_height } => (half_height, local),
+        };
+        let aspect = self.width / self.height;
+        let sx = q.x / (aspect * half);
+        let sy = q.y / half;
+        Some(Vec2::new(
+            (sx + 1.0) * 0.5 * self.width,
+            (1.0 - sy) * 0.5 * self.height,
+        ))
+    }
+}
+
+/// Shirley and Chiu's concentric map from the unit square to the unit disk.
+#[inline]
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
+    };
+    let (s, c) = theta.sin_cos();
+    Vec2::new(r * c, r * s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cornell(width: u32, height: u32) -> Camera {
+        let cam = SceneCamera::look_at(
+            "c",
+            Vec3::new(0.0, 1.0, 3.5),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::Y,
+            40.107,
+        );
+        Camera::new(&cam, width, height)
+    }
+
+    #[test]
+    fn centre_and_edges_follow_the_field_of_view() {
+        let c = cornell(256, 128);
+        let centre = c.ray(Vec2::new(128.0, 64.0), Vec2::splat(0.5)).ray;
+        assert!((centre.direction - Vec3::NEG_Z).length() < 1e-6);
+        assert!((centre.origin - Vec3::new(0.0, 1.0, 3.5)).length() < 1e-6);
+        // Top edge centre: 20.05 degrees above the axis.
+        let top = c.ray(Vec2::new(128.0, 0.0), Vec2::ZERO).ray.direction;
+        let angle = top.y.atan2(-top.z).to_degrees();
+        assert!((angle - 40.107 / 2.0).abs() < 1e-3, "{angle}");
+        // Right edge: horizontal half-angle atan(aspect * tan(vfov / 2)).
+        let right = c.ray(Vec2::new(256.0, 64.0), Vec2::ZERO).ray.direction;
+        let expected = (2.0 * (20.0535f32).to_radians().tan()).atan();
+        assert!((right.x.atan2(-right.z) - expected).abs() < 1e-4);
+    }
+
+    #[test]
+    fn projection_inverts_the_ray() {
+        let c = cornell(320, 200);
+        for film in [Vec2::new(10.5, 20.5), Vec2::new(300.0, 150.25)] {
+            let r = c.ray(film, Vec2::ZERO).ray;
+            let back = c.project(r.at(2.7)).unwrap();
+            assert!((back - film).length() < 1e-3, "{film} -> {back}");
+        }
+    }
+
+    #[test]
+    fn thin_lens_rays_meet_on_the_focal_plane() {
+        let c = cornell(64, 64).with_lens(0.1, 2.5);
+        let film = Vec2::new(20.0, 40.0);
+        let a = c.ray(film, Vec2::new(0.1, 0.9)).ray;
+        let b = c.ray(film, Vec2::new(0.8, 0.3)).ray;
+        assert!((a.origin - b.origin).length() > 0.01);
+        // Both reach the same point at depth 2.5 along the view axis.
+        let at_depth = |r: Ray| r.at((2.5 - (3.5 - r.origin.z)) / -r.direction.z);
+        assert!((at_depth(a) - at_depth(b)).length() < 1e-5);
+    }
+
+    #[test]
+    fn differentials_step_one_pixel() {
+        let c = cornell(100, 100);
+        let r = c.ray(Vec2::new(50.0, 50.0), Vec2::ZERO);
+        let right = c.ray(Vec2::new(51.0, 50.0), Vec2::ZERO).ray;
+        assert!((r.dx_direction - right.direction).length() < 1e-6);
+        assert!(r.dy_direction.y < r.ray.direction.y);
+    }
+
+    #[test]
+    fn concentric_disk_stays_inside_and_is_area_preserving() {
+        let n = 64;
+        let mut inner = 0;
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let d = concentric_disk(u);
+                assert!(d.length() <= 1.0 + 1e-6);
+                inner += (d.length() < 0.5) as u32;
+            }
+        }
+        // A quarter of the area lies within radius 1/2.
+        let frac = inner as f32 / (n * n) as f32;
+        assert!((frac - 0.25).abs() < 0.02, "{frac}");
+    }
+}

@@ -1,0 +1,276 @@
+//! The reference path tracer: next event estimation with multiple importance sampling (power
+//! heuristic) for area, punctual and environment lights, Russian roulette, a bounce limit,
+//! alpha cut-outs and Beer-Lambert absorption inside refracting volumes.
+//!
+//! Radiance is split as seed 001 splits it: `direct` is light that reaches the first visible
+//! surface straight from an emitter (plus emitters seen directly), `indirect` everything that
+//! bounced at least once more.
+
+use glam::{Vec2, Vec3};
+use pathlight_accel::{Hit, Ray};
+use pathlight_core::rng::{hash, Rng};
+
+use crate::bsdf::Bsdf;
+use crate::camera::Camera;
+use crate::config::{Config, MAX_PATH_VERTICES};
+use crate::sampler::PixelSampler;
+use crate::surface::{offset_origin, Shading, Surface};
+use crate::world::World;
+
+/// Sampler dimensions used by the camera (film jitter and lens).
+const CAMERA_DIMENSIONS: u32 = 4;
+/// Sampler dimensions used per path vertex (light choice, light point, lobe, direction,
+/// Russian roulette).
+const VERTEX_DIMENSIONS: u32 = 7;
+/// Cut-out surfaces a ray may pass through before it counts as blocked.
+const MAX_ALPHA_LAYERS: u32 = 64;
+
+/// What one camera path brings back.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PathSample {
+    pub direct: Vec3,
+    pub indirect: Vec3,
+    /// Base colour at the first hit (zero when the ray escapes).
+    pub albedo: Vec3,
+    /// World shading normal at the first hit, facing the camera (zero when the ray escapes).
+    pub normal: Vec3,
+    /// Distance from the camera along its view axis to the first hit (zero when the ray
+    /// escapes).
+    pub depth: f32,
+}
+
+impl PathSample {
+    pub fn radiance(&self) -> Vec3 {
+        self.direct + self.indirect
+    }
+}
+
+/// A path tracer over one world, camera and configuration.
+pub struct PathTracer<'a> {
+    pub world: &'a World,
+    pub camera: &'a Camera,
+    pub config: &'a Config,
+}
+
+#[inline]
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2.is_infinite() {
+        1.0
+    } else if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+/// Adds radiance `l` that arrived at path vertex `vertex` straight from an emitter.
+#[inline]
+fn add(out: &mut PathSample, vertex: u32, l: Vec3) {
+    let l = finite_or_zero(l);
+    if vertex == 0 {
+        out.direct += l;
+    } else {
+        out.indirect += l;
+    }
+}
+
+/// Replaces NaN and infinite samples by zero (one bad sample must not ruin a reference).
+#[inline]
+fn finite_or_zero(v: Vec3) -> Vec3 {
+    if v.is_finite() {
+        v
+    } else {
+        Vec3::ZERO
+    }
+}
+
+impl PathTracer<'_> {
+    /// Sample `index` of pixel (`x`, `y`): a box-filtered (uniform jitter) camera path.
+    pub fn sample_pixel(&self, x: u32, y: u32, index: u32) -> PathSample {
+        let mut sampler = PixelSampler::new(self.config.seed, x, y, index);
+        let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+        let lens = sampler.next_2d();
+        let ray = self.camera.ray(film, lens).ray;
+        let rng = Rng::new(hash(&[self.config.seed, x as u64, y as u64]), index as u64);
+        self.trace(ray, sampler, rng)
+    }
+
+    /// The closest surface along `ray` that is not cut away, with its shading.
+    fn intersect(&self, mut ray: Ray, rng: &mut Rng) -> Option<(Hit, Surface, Shading)> {
+        let world = self.world;
+        for _ in 0..MAX_ALPHA_LAYERS {
+            let hit = world.accel.intersect(&ray)?;
+            let surface = Surface::new(world, &ray, &hit);
+            let shading = surface.shade(world, self.config.microfacet);
+            if shading.alpha >= 1.0 || (shading.alpha > 0.0 && rng.next_f32() < shading.alpha) {
+                return Some((hit, surface, shading));
+            }
+            // Continue behind the cut-out; `t` stays measured from the original origin.
+            let origin = offset_origin(surface.p, surface.ng, ray.direction);
+            let skipped = (origin - ray.origin).dot(ray.direction);
+            ray = Ray::segment(origin, ray.direction, 0.0, ray.t_max - skipped);
+        }
+        None
+    }
+
+    /// The fraction of light that passes from `origin` along `dir` over `distance` (1 or 0 for
+    /// opaque scenes; blended surfaces let 1 - alpha through).
+    fn transmittance(&self, origin: Vec3, dir: Vec3, distance: f32) -> f32 {
+        let world = self.world;
+        let t_max = if distance.is_finite() {
+            distance * (1.0 - 1e-4)
+        } else {
+            f32::MAX
+        };
+        let mut ray = Ray::segment(origin, dir, 0.0, t_max);
+        if !world.has_alpha {
+            return if world.accel.occluded(&ray) { 0.0 } else { 1.0 };
+        }
+        let mut tr = 1.0;
+        for _ in 0..MAX_ALPHA_LAYERS {
+            let Some(hit) = world.accel.intersect(&ray) else {
+                return tr;
+            };
+            let surface = Surface::new(world, &ray, &hit);
+            let shading = surface.shade(world, self.config.microfacet);
+            tr *= 1.0 - shading.alpha;
+            if tr <= 0.0 {
+                return 0.0;
+            }
+            let next = offset_origin(surface.p, surface.ng, dir);
+            let travelled = (next - ray.origin).dot(dir);
+            ray = Ray::segment(next, dir, 0.0, ray.t_max - travelled);
+        }
+        0.0
+    }
+
+    /// Follows one path from `ray`.
+    pub fn trace(&self, mut ray: Ray, mut sampler: PixelSampler, mut rng: Rng) -> PathSample {
+        let world = self.world;
+        let lights = &world.lights;
+        let max_bounces = self.config.max_bounces.unwrap_or(u32::MAX);
+        let mut out = PathSample::default();
+        let mut beta = Vec3::ONE;
+        // Radiance scaling from refraction, undone for Russian roulette (pbrt-v4's etaScale).
+        let mut eta_scale = 1.0f32;
+        let mut specular_bounce = false;
+        let mut prev_pdf = 0.0f32;
+        let mut prev_p = ray.origin;
+        // Absorption of the volume the ray travels through.
+        let mut sigma_a = Vec3::ZERO;
+        for bounce in 0..MAX_PATH_VERTICES {
+            sampler.set_dimension(CAMERA_DIMENSIONS + bounce * VERTEX_DIMENSIONS);
+            let Some((hit, surface, shading)) = self.intersect(ray, &mut rng) else {
+                // Escaped: the environment.
+                let le = lights.environment_radiance(ray.direction);
+                if le != Vec3::ZERO {
+                    let w = if bounce == 0 || specular_bounce {
+                        1.0
+                    } else {
+                        power_heuristic(prev_pdf, lights.pdf_environment(ray.direction))
+                    };
+                    add(&mut out, bounce.saturating_sub(1), beta * le * w);
+                }
+                break;
+            };
+            if sigma_a != Vec3::ZERO {
+                beta *= (-sigma_a * hit.t).exp();
+            }
+            let wo = -ray.direction;
+            if bounce == 0 {
+                out.albedo = shading.params.base_color;
+                out.normal = surface.ns;
+                out.depth = hit.t * ray.direction.dot(self.camera.forward());
+            }
+            // Emission reached by BSDF sampling (or seen directly).
+            let le = lights.emitted(
+                &world.scene,
+                surface.instance,
+                surface.triangle,
+                surface.bary,
+                wo,
+            );
+            if le != Vec3::ZERO {
+                let w = if bounce == 0 || specular_bounce {
+                    1.0
+                } else {
+                    let light_pdf =
+                        lights.pdf_triangle(prev_p, surface.instance, surface.triangle, surface.p);
+                    power_heuristic(prev_pdf, light_pdf)
+                };
+                add(&mut out, bounce.saturating_sub(1), beta * le * w);
+            }
+            if bounce >= max_bounces {
+                break;
+            }
+            let bsdf = Bsdf::new(&shading.params);
+            let wo_local = surface.to_local(wo);
+            // Next event estimation.
+            let u_light = sampler.next_1d();
+            let u_point = sampler.next_2d();
+            if !bsdf.is_delta() && !lights.is_empty() {
+                if let Some(ls) = lights.sample(surface.p, u_light, u_point) {
+                    let wi_local = surface.to_local(ls.wi);
+                    // Reflection needs both directions on the same geometric side.
+                    let same_side = ls.wi.dot(surface.ng) * wo.dot(surface.ng) > 0.0;
+                    let f = bsdf.eval(wo_local, wi_local) * wi_local.z.abs();
+                    if ls.pdf > 0.0 && f != Vec3::ZERO && (same_side || shading.params.transmission > 0.0) {
+                        let tr = self.transmittance(surface.spawn_origin(ls.wi), ls.wi, ls.distance);
+                        if tr > 0.0 {
+                            let w = if ls.delta {
+                                1.0
+                            } else {
+                                power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local))
+                            };
+                            add(&mut out, bounce, beta * f * ls.radiance * (tr * w / ls.pdf));
+                        }
+                    }
+                }
+            }
+            // Continue the path.
+            let u_lobe = sampler.next_1d();
+            let u_dir = sampler.next_2d();
+            let Some(bs) = bsdf.sample(wo_local, u_lobe, u_dir) else {
+                break;
+            };
+            if bs.pdf <= 0.0 {
+                break;
+            }
+            let wi = surface.to_world(bs.wi);
+            let crosses = wi.dot(surface.ng) * wo.dot(surface.ng) < 0.0;
+            if crosses != bs.transmitted {
+                // The shading normal and the geometry disagree about the side: drop the path
+                // rather than leak light through the surface.
+                break;
+            }
+            beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+            specular_bounce = bs.delta;
+            prev_pdf = bs.pdf;
+            prev_p = surface.p;
+            if bs.transmitted && shading.volume {
+                let entering = wo_local.z > 0.0;
+                let eta = shading.params.ior;
+                eta_scale *= if entering { eta * eta } else { 1.0 / (eta * eta) };
+                sigma_a = if entering { shading.sigma_a } else { Vec3::ZERO };
+            }
+            if beta == Vec3::ZERO || !beta.is_finite() {
+                break;
+            }
+            ray = Ray::new(surface.spawn_origin(wi), wi);
+            // Russian roulette.
+            let u_rr = sampler.next_1d();
+            if bounce + 1 >= self.config.rr_start {
+                let m = (beta * eta_scale).max_element();
+                if m < 1.0 {
+                    let q = (1.0 - m).max(0.0);
+                    if u_rr < q {
+                        break;
+                    }
+                    beta /= 1.0 - q;
+                }
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,93 @@
+//! The scene as the renderer sees it: the scene model, its acceleration structure, its lights
+//! and per-instance data the shading code needs on every hit.
+
+use glam::Mat3;
+use pathlight_accel::{build_accel, Accel};
+use pathlight_scene::{AlphaMode, Scene};
+
+use crate::light::{LightSelection, Lights};
+
+pub struct World {
+    pub scene: Scene,
+    pub accel: Box<dyn Accel>,
+    pub lights: Lights,
+    /// Object-to-world normal matrix (inverse transpose) per instance.
+    pub(crate) normal_matrices: Vec<Mat3>,
+    /// Object-to-world linear part per instance (tangents).
+    pub(crate) linear: Vec<Mat3>,
+    /// True when some material is alpha-masked or blended (rays then look through cut-outs).
+    pub(crate) has_alpha: bool,
+}
+
+impl World {
+    /// Builds the acceleration structure and the light sampler for `scene`.
+    pub fn new(scene: Scene, selection: LightSelection) -> Self {
+        let accel = build_accel(&scene);
+        Self::with_accel(scene, accel, selection)
+    }
+
+    /// As [`new`](Self::new) with a given acceleration structure (e.g. Embree or brute force).
+    pub fn with_accel(scene: Scene, accel: Box<dyn Accel>, selection: LightSelection) -> Self {
+        let lights = Lights::new(&scene, selection);
+        let normal_matrices = scene.instances.iter().map(|i| i.normal_matrix()).collect();
+        let linear = scene
+            .instances
+            .iter()
+            .map(|i| Mat3::from_mat4(i.transform))
+            .collect();
+        let has_alpha = scene
+            .materials
+            .iter()
+            .any(|m| m.alpha_mode != AlphaMode::Opaque);
+        Self {
+            scene,
+            accel,
+            lights,
+            normal_matrices,
+            linear,
+            has_alpha,
+        }
+    }
+}
+
+impl World {
+    /// The scene's first camera, or one that frames the whole scene from +Z when it has none.
+    pub fn scene_camera(&self) -> pathlight_scene::Camera {
+        if let Some(c) = self.scene.cameras.first() {
+            return c.clone();
+        }
+        let b = self.scene.bounds();
+        let (centre, radius) = if b.is_empty() {
+            (glam::Vec3::ZERO, 1.0)
+        } else {
+            (b.center(), (0.5 * b.diagonal().length()).max(1e-3))
+        };
+        let fov = 45.0f32;
+        let distance = radius / (0.5 * fov.to_radians()).sin();
+        pathlight_scene::Camera::look_at(
+            "default",
+            centre + glam::Vec3::Z * distance,
+            centre,
+            glam::Vec3::Y,
+            fov,
+        )
+    }
+
+    /// The render camera of `config`: the scene camera with the configuration's overrides, and
+    /// its thin lens focused at `focus_distance` or, without one, on what the image centre sees.
+    pub fn camera(&self, config: &crate::Config) -> crate::Camera {
+        let cam = config.camera.apply(&self.scene_camera());
+        let camera = crate::Camera::new(&cam, config.width, config.height);
+        if config.camera.lens_radius <= 0.0 {
+            return camera;
+        }
+        let focus = config.camera.focus_distance.unwrap_or_else(|| {
+            let centre = glam::Vec2::new(config.width as f32, config.height as f32) * 0.5;
+            let ray = camera.ray(centre, glam::Vec2::splat(0.5)).ray;
+            self.accel
+                .intersect(&ray)
+                .map_or(1.0, |h| h.t * ray.direction.dot(camera.forward()))
+        });
+        camera.with_lens(config.camera.lens_radius, focus)
+    }
+}
