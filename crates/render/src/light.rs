@@ -1,10 +1,54 @@
 //! The scene's lights as the path tracer samples them: emissive triangles, punctual lights
 //! (glTF `KHR_lights_punctual`) and the environment, chosen in proportion to power (or
 //! uniformly) with an alias table.
+//!
+//! Light indices: the scene's emissive triangles first (in `Scene::emissive_triangles` order),
+//! then its punctual lights (in `Scene::lights` order), then the environment.
+//!
+//! Conventions:
+//! - Emissive triangles: world corners are the instance's transform of the mesh's corners. The
+//!   front face is the side of `normal_matrix * cross(b - a, c - a)` (object space), which is
+//!   `sign(det M) * cross` of the world corners: a mirroring transform keeps the front where the
+//!   object space put it, as glTF requires. One-sided emitters (`two_sided == false`) shine
+//!   from the front only. Points are sampled uniformly by area (`sqrt(u)` barycentric map);
+//!   densities are converted to solid angle (`pdf_area * d^2 / |cos_light|`). Radiance is the
+//!   material's `emissive` times its emissive texture at the point's interpolated UV.
+//! - Punctual lights: point and spot intensities are candela (W/sr): radiance term
+//!   `I / d^2`; spots use glTF's smooth falloff, directional lights give their illuminance.
+//!   glTF's range window `clamp(1 - (d/range)^4, 0, 1)^2` applies when `range` is set.
+//! - Environment: importance sampled with a [`Distribution2D`] over the lat-long texels, in
+//!   proportion to luminance * sin(theta) (texels that are exactly black get probability 0;
+//!   there is no floor). Maps under 64 texels high get several distribution rows per texel row
+//!   so the density follows sin(theta); every distribution cell lies inside one texel. The
+//!   solid-angle density is `pdf_uv / (2 pi^2 sin theta)` at `Environment::direction_to_uv`,
+//!   with the cell found by the same rounding as `Environment::radiance`'s nearest texel.
+//!   `sample` evaluates its density and radiance from the sampled direction through the same
+//!   code as `pdf_environment` and `environment_radiance`, so they agree bit for bit.
+//!
+//! Power (for [`LightSelection::Power`], as luminance), pbrt-v4's conventions: triangle
+//! `EmissiveTriangle::power` (pi * area * mean radiance, doubled when two-sided); point 4 pi I;
+//! spot 2 pi I (1 - (cos_inner + cos_outer) / 2); directional pi r^2 E; environment
+//! pi r^2 * (integral of radiance over the sphere), with r the radius of the scene's bounding
+//! sphere (1 when the scene has no geometry).
+//!
+//! `Lights` owns what sampling needs, as `sample` gets no scene: each emissive triangle's world
+//! corners and front normal (64 bytes), the UVs of textured emitters, clones of the textures
+//! used as emissive textures, and a clone of the environment (12 bytes per texel) with its
+//! sampling CDFs (4 bytes per texel).
 
-use glam::{Vec2, Vec3};
-use pathlight_scene::Scene;
+use std::collections::HashMap;
+use std::f32::consts::PI;
+
+use glam::{Mat3, Vec2, Vec3, Vec4Swizzles};
+use pathlight_core::color::luminance;
+use pathlight_scene::{Environment, Material, PunctualKind, Scene, Texture, TextureRef};
 use serde::{Deserialize, Serialize};
+
+use crate::alias::AliasTable;
+use crate::distribution::Distribution2D;
+
+#[cfg(test)]
+mod tests;
 
 /// How a light is picked for next event estimation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -34,15 +78,340 @@ pub struct LightSample {
     pub delta: bool,
 }
 
+/// Environment maps lower than this are sampled with several rows per texel row.
+const MIN_ENVIRONMENT_ROWS: usize = 64;
+
+/// "No entry" in the index tables.
+const NONE: u32 = u32::MAX;
+
+/// An emissive triangle in world space.
+#[derive(Debug, Clone, Copy)]
+struct TriangleLight {
+    a: Vec3,
+    /// b - a and c - a: the point of barycentrics (u, v) is a + u e1 + v e2.
+    e1: Vec3,
+    e2: Vec3,
+    /// Unit normal on the emitting (front) side.
+    normal: Vec3,
+    area: f32,
+    two_sided: bool,
+    /// Index into `Lights::emitters`.
+    emitter: u32,
+    /// Index into `Lights::uvs` (the corners' UVs for the emissive texture), or `NONE`.
+    uvs: u32,
+}
+
+/// The emission of one material: its factor and its texture (index into `Lights::textures`).
+#[derive(Debug, Clone, Copy)]
+struct Emitter {
+    emissive: Vec3,
+    texture: Option<(u32, TextureRef)>,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Punctual {
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+        /// 1 / range, 0 without range.
+        inv_range: f32,
+    },
+    Spot {
+        position: Vec3,
+        /// Unit direction the light travels along the axis.
+        axis: Vec3,
+        intensity: Vec3,
+        inv_range: f32,
+        /// glTF's falloff: clamp(cos * scale + offset, 0, 1)^2.
+        scale: f32,
+        offset: f32,
+    },
+    Directional {
+        /// Unit direction toward the light.
+        wi: Vec3,
+        illuminance: Vec3,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct EnvironmentLight {
+    env: Environment,
+    /// `None` when every texel is black (the light is then never selected).
+    distribution: Option<Distribution2D>,
+}
+
 /// Every light of a scene, ready to sample.
+#[derive(Debug, Clone)]
 pub struct Lights {
     count: usize,
+    /// Over all lights; `None` when no light has positive power.
+    selection: Option<AliasTable>,
+    triangles: Vec<TriangleLight>,
+    emitters: Vec<Emitter>,
+    uvs: Vec<[Vec2; 3]>,
+    textures: Vec<Texture>,
+    punctual: Vec<Punctual>,
+    environment: Option<EnvironmentLight>,
+    /// (instance, triangle) -> light: `triangle_lights[instance_base[instance] + triangle]`
+    /// (`instance_base` is `NONE` for instances without emissive triangles; entries are `NONE`
+    /// for triangles that are not lights). One u32 per triangle of the instances that emit:
+    /// O(1) lookup, no hashing.
+    instance_base: Vec<u32>,
+    triangle_lights: Vec<u32>,
+}
+
+/// glTF's range window (1 without range).
+#[inline]
+fn range_window(distance: f32, inv_range: f32) -> f32 {
+    let x = distance * inv_range;
+    let w = (1.0 - (x * x) * (x * x)).clamp(0.0, 1.0);
+    w * w
+}
+
+/// Luminance of a colour as a selection weight (0 for anything negative or not finite).
+fn weight(power: Vec3) -> f32 {
+    let l = luminance(power.max(Vec3::ZERO));
+    if l.is_finite() {
+        l
+    } else {
+        0.0
+    }
+}
+
+/// The emissive texture of a material and the UVs of a triangle's corners for it.
+fn emissive_texture_uvs(
+    scene: &Scene,
+    mat: &Material,
+    mesh: u32,
+    triangle: usize,
+) -> Option<(TextureRef, [Vec2; 3])> {
+    let tex = mat.emissive_texture?;
+    scene.textures.get(tex.texture as usize)?;
+    let mesh = &scene.meshes[mesh as usize];
+    let uvs = match tex.texcoord {
+        0 => mesh.uv0.as_ref(),
+        _ => mesh.uv1.as_ref(),
+    }?;
+    let corners = mesh.indices[triangle].map(|i| uvs[i as usize]);
+    Some((tex, corners))
+}
+
+/// `emissive` times the texture at barycentrics `bary` of the corners' UVs.
+#[inline]
+fn textured(
+    emissive: Vec3,
+    texture: &Texture,
+    tex: &TextureRef,
+    uvs: [Vec2; 3],
+    bary: Vec2,
+) -> Vec3 {
+    let uv = uvs[0] * (1.0 - bary.x - bary.y) + uvs[1] * bary.x + uvs[2] * bary.y;
+    emissive * texture.sample(tex.apply(uv), &tex.sampler).xyz()
 }
 
 impl Lights {
     pub fn new(scene: &Scene, selection: LightSelection) -> Self {
-        let _ = (scene, selection);
-        todo!("lights")
+        let mut weights = Vec::new();
+
+        // Emissive triangles.
+        let mut triangles = Vec::with_capacity(scene.emissive_triangles.len());
+        let mut emitters = Vec::new();
+        let mut emitter_of_material: HashMap<u32, u32> = HashMap::new();
+        let mut textures = Vec::new();
+        let mut texture_index: HashMap<u32, u32> = HashMap::new();
+        let mut uvs = Vec::new();
+        let mut instance_base = vec![NONE; scene.instances.len()];
+        let mut triangle_lights = Vec::new();
+        for (light, et) in scene.emissive_triangles.iter().enumerate() {
+            let inst = &scene.instances[et.instance as usize];
+            let mesh = &scene.meshes[inst.mesh as usize];
+            let material = mesh.material;
+            let mat = &scene.materials[material as usize];
+            let [a, b, c] = mesh
+                .triangle(et.triangle as usize)
+                .map(|p| inst.transform.transform_point3(p));
+            let (e1, e2) = (b - a, c - a);
+            let cross = e1.cross(e2);
+            let det = Mat3::from_mat4(inst.transform).determinant();
+            let normal = (cross * det.signum()).normalize_or_zero();
+            let area = 0.5 * cross.length();
+            let emitter = *emitter_of_material.entry(material).or_insert_with(|| {
+                let texture = mat.emissive_texture.and_then(|t| {
+                    scene.textures.get(t.texture as usize)?;
+                    let local = *texture_index.entry(t.texture).or_insert_with(|| {
+                        textures.push(scene.textures[t.texture as usize].clone());
+                        textures.len() as u32 - 1
+                    });
+                    Some((local, t))
+                });
+                emitters.push(Emitter {
+                    emissive: mat.emissive,
+                    texture,
+                });
+                emitters.len() as u32 - 1
+            });
+            let corner_uvs = if emitters[emitter as usize].texture.is_some() {
+                emissive_texture_uvs(scene, mat, inst.mesh, et.triangle as usize).map_or(
+                    NONE,
+                    |(_, c)| {
+                        uvs.push(c);
+                        uvs.len() as u32 - 1
+                    },
+                )
+            } else {
+                NONE
+            };
+            let usable = area > 0.0 && area.is_finite() && normal != Vec3::ZERO;
+            triangles.push(TriangleLight {
+                a,
+                e1,
+                e2,
+                normal,
+                area,
+                two_sided: et.two_sided,
+                emitter,
+                uvs: corner_uvs,
+            });
+            weights.push(if usable { weight(et.power) } else { 0.0 });
+
+            let base = &mut instance_base[et.instance as usize];
+            if *base == NONE {
+                *base = triangle_lights.len() as u32;
+                triangle_lights.resize(triangle_lights.len() + mesh.indices.len(), NONE);
+            }
+            triangle_lights[*base as usize + et.triangle as usize] = light as u32;
+        }
+
+        // The scene's bounding-sphere radius, for the power of lights at infinity.
+        let needs_radius = scene.environment.is_some()
+            || scene
+                .lights
+                .iter()
+                .any(|l| l.kind == PunctualKind::Directional);
+        let radius = if needs_radius {
+            let b = scene.bounds();
+            let r = 0.5 * b.diagonal().length();
+            if !b.is_empty() && r > 0.0 && r.is_finite() {
+                r
+            } else {
+                1.0
+            }
+        } else {
+            1.0
+        };
+        let disk = PI * radius * radius;
+
+        // Punctual lights.
+        let mut punctual = Vec::with_capacity(scene.lights.len());
+        for l in &scene.lights {
+            let inv_range = match l.range {
+                Some(r) if r > 0.0 && r.is_finite() => 1.0 / r,
+                _ => 0.0,
+            };
+            let intensity = l.intensity;
+            let (light, power) = match l.kind {
+                PunctualKind::Point => (
+                    Punctual::Point {
+                        position: l.position,
+                        intensity,
+                        inv_range,
+                    },
+                    4.0 * PI * intensity,
+                ),
+                PunctualKind::Spot {
+                    inner_cone,
+                    outer_cone,
+                } => {
+                    let (cos_inner, cos_outer) = (inner_cone.cos(), outer_cone.cos());
+                    let scale = 1.0 / (cos_inner - cos_outer).max(0.001);
+                    let axis = l.direction.normalize_or_zero();
+                    (
+                        Punctual::Spot {
+                            position: l.position,
+                            axis,
+                            intensity,
+                            inv_range,
+                            scale,
+                            offset: -cos_outer * scale,
+                        },
+                        if axis == Vec3::ZERO {
+                            Vec3::ZERO
+                        } else {
+                            2.0 * PI * intensity * (1.0 - 0.5 * (cos_inner + cos_outer))
+                        },
+                    )
+                }
+                PunctualKind::Directional => {
+                    let wi = -l.direction.normalize_or_zero();
+                    (
+                        Punctual::Directional {
+                            wi,
+                            illuminance: intensity,
+                        },
+                        if wi == Vec3::ZERO {
+                            Vec3::ZERO
+                        } else {
+                            disk * intensity
+                        },
+                    )
+                }
+            };
+            punctual.push(light);
+            weights.push(weight(power));
+        }
+
+        // The environment.
+        let environment = scene.environment.as_ref().map(|env| {
+            let (w, h) = (env.width as usize, env.height as usize);
+            // Low maps get several distribution rows per texel row, so the density follows
+            // sin(theta) (a constant map is then sampled nearly uniformly over the sphere);
+            // every distribution cell still lies inside one texel.
+            let split = MIN_ENVIRONMENT_ROWS.div_ceil(h.max(1));
+            let rows = h * split;
+            let mut texel_weights = vec![0.0f32; w * rows];
+            let mut integral = 0.0f64;
+            for y in 0..h {
+                let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
+                let solid_angle = (2.0 * PI / w as f32) * (t0.cos() - t1.cos());
+                for x in 0..w {
+                    let lum = weight(env.texels[y * w + x] * env.intensity);
+                    integral += lum as f64 * solid_angle as f64;
+                    for r in y * split..(y + 1) * split {
+                        let sin_center = (PI * (r as f32 + 0.5) / rows as f32).sin();
+                        texel_weights[r * w + x] = lum * sin_center;
+                    }
+                }
+            }
+            let distribution = Distribution2D::new(&texel_weights, w, rows);
+            let power = if distribution.is_some() {
+                disk * integral as f32
+            } else {
+                0.0
+            };
+            weights.push(if power.is_finite() { power } else { 0.0 });
+            EnvironmentLight {
+                env: env.clone(),
+                distribution,
+            }
+        });
+
+        if selection == LightSelection::Uniform {
+            for w in &mut weights {
+                *w = if *w > 0.0 { 1.0 } else { 0.0 };
+            }
+        }
+        Self {
+            count: weights.len(),
+            selection: AliasTable::new(&weights),
+            triangles,
+            emitters,
+            uvs,
+            textures,
+            punctual,
+            environment,
+            instance_base,
+            triangle_lights,
+        }
     }
 
     /// Number of lights (emissive triangles + punctual lights + the environment).
@@ -54,17 +423,102 @@ impl Lights {
         self.count == 0
     }
 
+    /// The probability of selecting light `index` (see the module doc for the indices).
+    pub fn selection_pmf(&self, index: usize) -> f32 {
+        self.selection.as_ref().map_or(0.0, |t| t.pmf(index))
+    }
+
+    /// The light index of emissive `triangle` of `instance`, if it is a light: O(1).
+    #[inline]
+    pub fn triangle_light(&self, instance: u32, triangle: u32) -> Option<usize> {
+        let base = *self.instance_base.get(instance as usize)?;
+        if base == NONE {
+            return None;
+        }
+        let light = *self
+            .triangle_lights
+            .get(base as usize + triangle as usize)?;
+        (light != NONE).then_some(light as usize)
+    }
+
     /// Samples a light and a point on it as seen from `p`: `u_select` picks the light, `u` the
     /// point. `None` when nothing can be sampled (no light, or the point is behind a one-sided
-    /// emitter).
+    /// emitter), and whenever the sample would carry no radiance (outside a spot's cone or a
+    /// light's range, on a black texel).
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
-        let _ = (p, u_select, u);
-        todo!("lights")
+        let (index, select) = self.selection.as_ref()?.sample(u_select);
+        let n_tri = self.triangles.len();
+        let sample = if index < n_tri {
+            self.sample_triangle(&self.triangles[index], p, u, select)?
+        } else if let Some(light) = self.punctual.get(index - n_tri) {
+            sample_punctual(light, p, select)?
+        } else {
+            self.sample_environment(u, select)?
+        };
+        (sample.radiance.max_element() > 0.0 && sample.pdf > 0.0 && sample.pdf.is_finite())
+            .then_some(sample)
+    }
+
+    #[inline]
+    fn sample_triangle(
+        &self,
+        t: &TriangleLight,
+        p: Vec3,
+        u: Vec2,
+        select: f32,
+    ) -> Option<LightSample> {
+        let s = u.x.max(0.0).sqrt();
+        let bu = u.y * s;
+        let bv = s - bu;
+        let q = t.a + t.e1 * bu + t.e2 * bv;
+        let (wi, distance, pdf) = solid_angle(t, p, q)?;
+        Some(LightSample {
+            wi,
+            distance,
+            radiance: self.triangle_radiance(t, Vec2::new(bu, bv)),
+            pdf: select * pdf,
+            delta: false,
+        })
+    }
+
+    #[inline]
+    fn triangle_radiance(&self, t: &TriangleLight, bary: Vec2) -> Vec3 {
+        let e = &self.emitters[t.emitter as usize];
+        match e.texture {
+            Some((texture, tex)) if t.uvs != NONE => textured(
+                e.emissive,
+                &self.textures[texture as usize],
+                &tex,
+                self.uvs[t.uvs as usize],
+                bary,
+            ),
+            _ => e.emissive,
+        }
+    }
+
+    fn sample_environment(&self, u: Vec2, select: f32) -> Option<LightSample> {
+        let light = self.environment.as_ref()?;
+        let (uv, _) = light.distribution.as_ref()?.sample(u);
+        let wi = light.env.uv_to_direction(uv);
+        // The density and radiance of the direction itself, as `pdf_environment` and
+        // `environment_radiance` find them: the same texel, bit for bit.
+        let pdf = environment_pdf(light, wi);
+        Some(LightSample {
+            wi,
+            distance: f32::INFINITY,
+            radiance: light.env.radiance(wi),
+            pdf: select * pdf,
+            delta: false,
+        })
     }
 
     /// Radiance emitted toward `wo` (unit, pointing away from the surface toward the viewer)
     /// from the point with barycentrics `bary` (the hit's u, v) of `triangle` of `instance`;
     /// zero on the back of a one-sided emitter and on non-emitters.
+    ///
+    /// Triangles of an emissive material that are not in the light list (those
+    /// `Scene::collect_emissive_triangles` found black at its sample points) are evaluated from
+    /// `scene`: they are then seen only by BSDF sampling, and `pdf_triangle` is 0 for them.
     pub fn emitted(
         &self,
         scene: &Scene,
@@ -73,27 +527,158 @@ impl Lights {
         bary: Vec2,
         wo: Vec3,
     ) -> Vec3 {
-        let _ = (scene, instance, triangle, bary, wo);
-        todo!("lights")
+        if let Some(light) = self.triangle_light(instance, triangle) {
+            let t = &self.triangles[light];
+            if !t.two_sided && t.normal.dot(wo) <= 0.0 {
+                return Vec3::ZERO;
+            }
+            return self.triangle_radiance(t, bary);
+        }
+        emitted_from_scene(scene, instance, triangle, bary, wo)
     }
 
     /// The solid-angle density (selection included) with which [`sample`](Self::sample), called
     /// at `p`, returns the point `q` of emissive `triangle` of `instance`; 0 when it is not a
-    /// light.
+    /// light or `p` is behind a one-sided emitter.
     pub fn pdf_triangle(&self, p: Vec3, instance: u32, triangle: u32, q: Vec3) -> f32 {
-        let _ = (p, instance, triangle, q);
-        todo!("lights")
+        let Some(light) = self.triangle_light(instance, triangle) else {
+            return 0.0;
+        };
+        let select = self.selection_pmf(light);
+        if select == 0.0 {
+            return 0.0;
+        }
+        solid_angle(&self.triangles[light], p, q).map_or(0.0, |(_, _, pdf)| select * pdf)
     }
 
     /// Radiance of the environment along `dir` (toward the sky); zero without one.
     pub fn environment_radiance(&self, dir: Vec3) -> Vec3 {
-        let _ = dir;
-        todo!("lights")
+        self.environment
+            .as_ref()
+            .map_or(Vec3::ZERO, |l| l.env.radiance(dir))
     }
 
-    /// The solid-angle density (selection included) of sampling environment direction `dir`.
+    /// The solid-angle density (selection included) of sampling environment direction `dir`
+    /// (unit length).
     pub fn pdf_environment(&self, dir: Vec3) -> f32 {
-        let _ = dir;
-        todo!("lights")
+        let Some(light) = &self.environment else {
+            return 0.0;
+        };
+        let select = self.selection_pmf(self.count - 1);
+        if select == 0.0 {
+            return 0.0;
+        }
+        select * environment_pdf(light, dir)
+    }
+}
+
+/// Direction, distance and solid-angle density (without selection) of point `q` of `t` seen
+/// from `p`; `None` when `p` is behind a one-sided emitter or the density is not finite.
+#[inline]
+fn solid_angle(t: &TriangleLight, p: Vec3, q: Vec3) -> Option<(Vec3, f32, f32)> {
+    let to = q - p;
+    let d2 = to.length_squared();
+    let distance = d2.sqrt();
+    let wi = to / distance;
+    let cos = -t.normal.dot(wi);
+    let cos = if t.two_sided { cos.abs() } else { cos };
+    if cos.is_nan() || cos <= 0.0 {
+        return None;
+    }
+    let pdf = d2 / (t.area * cos);
+    (pdf > 0.0 && pdf.is_finite()).then_some((wi, distance, pdf))
+}
+
+/// Solid-angle density (without selection) of environment direction `dir`.
+#[inline]
+fn environment_pdf(light: &EnvironmentLight, dir: Vec3) -> f32 {
+    let Some(d) = &light.distribution else {
+        return 0.0;
+    };
+    let uv = light.env.direction_to_uv(dir);
+    let sin_theta = (uv.y * PI).sin();
+    if sin_theta.is_nan() || sin_theta <= 0.0 {
+        return 0.0;
+    }
+    d.pdf(uv) / (2.0 * PI * PI * sin_theta)
+}
+
+#[inline]
+fn sample_punctual(light: &Punctual, p: Vec3, select: f32) -> Option<LightSample> {
+    let toward = |position: Vec3| {
+        let to = position - p;
+        let d2 = to.length_squared();
+        let d = d2.sqrt();
+        (d2 > 0.0 && d2.is_finite()).then(|| (to / d, d, d2))
+    };
+    let (wi, distance, radiance) = match *light {
+        Punctual::Point {
+            position,
+            intensity,
+            inv_range,
+        } => {
+            let (wi, d, d2) = toward(position)?;
+            (wi, d, intensity * (range_window(d, inv_range) / d2))
+        }
+        Punctual::Spot {
+            position,
+            axis,
+            intensity,
+            inv_range,
+            scale,
+            offset,
+        } => {
+            let (wi, d, d2) = toward(position)?;
+            let falloff = (axis.dot(-wi) * scale + offset).clamp(0.0, 1.0);
+            let falloff = falloff * falloff;
+            (
+                wi,
+                d,
+                intensity * (falloff * range_window(d, inv_range) / d2),
+            )
+        }
+        Punctual::Directional { wi, illuminance } => (wi, f32::INFINITY, illuminance),
+    };
+    Some(LightSample {
+        wi,
+        distance,
+        radiance,
+        pdf: select,
+        delta: true,
+    })
+}
+
+/// [`Lights::emitted`] for a triangle that is not in the light list, from the scene itself.
+fn emitted_from_scene(scene: &Scene, instance: u32, triangle: u32, bary: Vec2, wo: Vec3) -> Vec3 {
+    let Some(inst) = scene.instances.get(instance as usize) else {
+        return Vec3::ZERO;
+    };
+    let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+        return Vec3::ZERO;
+    };
+    let Some(mat) = scene.materials.get(mesh.material as usize) else {
+        return Vec3::ZERO;
+    };
+    if !mat.is_emissive() || triangle as usize >= mesh.indices.len() {
+        return Vec3::ZERO;
+    }
+    if !mat.emits_from_back {
+        let [a, b, c] = mesh
+            .triangle(triangle as usize)
+            .map(|p| inst.transform.transform_point3(p));
+        let det = Mat3::from_mat4(inst.transform).determinant();
+        if (b - a).cross(c - a).dot(wo) * det.signum() <= 0.0 {
+            return Vec3::ZERO;
+        }
+    }
+    match emissive_texture_uvs(scene, mat, inst.mesh, triangle as usize) {
+        Some((tex, uvs)) => textured(
+            mat.emissive,
+            &scene.textures[tex.texture as usize],
+            &tex,
+            uvs,
+            bary,
+        ),
+        None => mat.emissive,
     }
 }
