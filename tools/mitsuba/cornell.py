@@ -100,7 +100,7 @@ def make_mesh(name, tris, bsdf, emitter=None):
     return mesh
 
 
-def build_scene(obj_path, spp, verbose=True):
+def build_scene(obj_path, spp, verbose=True, max_depth=-1):
     mtllib, groups = parse_obj(obj_path)
     mtl_path = os.path.join(os.path.dirname(obj_path),
                             mtllib or os.path.splitext(obj_path)[0] + '.mtl')
@@ -110,7 +110,7 @@ def build_scene(obj_path, spp, verbose=True):
         'type': 'scene',
         'integrator': {
             'type': 'path',
-            'max_depth': -1,          # unlimited; rr_depth stays at 5
+            'max_depth': max_depth,   # -1: unlimited; rr_depth stays at 5
             'hide_emitters': False,
         },
         'sensor': {
@@ -168,9 +168,12 @@ def main(argv=None):
     ap.add_argument('--spp', type=int, default=64)
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--out', default='cornell-mitsuba-256.exr')
+    ap.add_argument('--max-depth', type=int, default=-1,
+                    help='Mitsuba path depth (-1 unlimited; 2 = direct light only)')
     args = ap.parse_args(argv)
 
-    scene = build_scene(os.path.abspath(args.obj), args.spp)
+    scene = build_scene(os.path.abspath(args.obj), args.spp,
+                        max_depth=args.max_depth)
     t0 = time.perf_counter()
     img = mi.render(scene, spp=args.spp, seed=args.seed)
     dt = time.perf_counter() - t0

@@ -114,15 +114,23 @@ impl PathTracer<'_> {
         None
     }
 
-    /// The fraction of light that passes from `origin` along `dir` over `distance` (1 or 0 for
-    /// opaque scenes; blended surfaces let 1 - alpha through).
-    fn transmittance(&self, origin: Vec3, dir: Vec3, distance: f32) -> f32 {
+    /// The fraction of light that passes from surface point `surface` along `dir` to a light
+    /// `distance` away (1 or 0 for opaque scenes; blended surfaces let 1 - alpha through).
+    fn transmittance(&self, surface: &Surface, dir: Vec3, distance: f32) -> f32 {
         let world = self.world;
+        let origin = surface.spawn_origin(dir);
         let t_max = if distance.is_finite() {
-            distance * (1.0 - 1e-4)
+            // Stop short of the light's own surface by as much as the origin was lifted off
+            // this one (and a relative margin), measured from the lifted origin.
+            let q = surface.p + dir * distance;
+            let lift = offset_origin(q, surface.ng, dir) - q;
+            ((q - origin).dot(dir) - 2.0 * lift.length()) * (1.0 - 1e-4)
         } else {
             f32::MAX
         };
+        if t_max <= 0.0 {
+            return 1.0;
+        }
         let mut ray = Ray::segment(origin, dir, 0.0, t_max);
         if !world.has_alpha {
             return if world.accel.occluded(&ray) { 0.0 } else { 1.0 };
@@ -216,7 +224,7 @@ impl PathTracer<'_> {
                     let same_side = ls.wi.dot(surface.ng) * wo.dot(surface.ng) > 0.0;
                     let f = bsdf.eval(wo_local, wi_local) * wi_local.z.abs();
                     if ls.pdf > 0.0 && f != Vec3::ZERO && (same_side || shading.params.transmission > 0.0) {
-                        let tr = self.transmittance(surface.spawn_origin(ls.wi), ls.wi, ls.distance);
+                        let tr = self.transmittance(&surface, ls.wi, ls.distance);
                         if tr > 0.0 {
                             let w = if ls.delta {
                                 1.0
