@@ -160,7 +160,10 @@ impl RenderArgs {
             }
         }
         if !(self.lens_radius.is_finite() && self.lens_radius >= 0.0) {
-            bail!("--lens-radius {}: must be finite and >= 0", self.lens_radius);
+            bail!(
+                "--lens-radius {}: must be finite and >= 0",
+                self.lens_radius
+            );
         }
         if let Some(d) = self.focus_distance {
             if !(d.is_finite() && d > 0.0) {
@@ -334,8 +337,12 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     if checkpoint_path.exists() && args.checkpoint.is_none() {
         // The render is complete: the default checkpoint has served its purpose.
-        std::fs::remove_file(&checkpoint_path)
-            .with_context(|| format!("{}: removing the finished checkpoint", checkpoint_path.display()))?;
+        std::fs::remove_file(&checkpoint_path).with_context(|| {
+            format!(
+                "{}: removing the finished checkpoint",
+                checkpoint_path.display()
+            )
+        })?;
     }
     let samples = film.samples();
     let peak = peak_rss_bytes();
@@ -348,7 +355,10 @@ fn render(args: &RenderArgs) -> Result<()> {
         render_s,
         samples as f64 / render_s / 1e6,
         setup_ms,
-        peak.map_or("unknown".to_owned(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64))
+        peak.map_or("unknown".to_owned(), |b| format!(
+            "{:.0} MiB",
+            b as f64 / (1 << 20) as f64
+        ))
     );
     if args.json {
         let json = serde_json::json!({

@@ -43,7 +43,7 @@ impl Camera {
     pub fn new(camera: &SceneCamera, width: u32, height: u32) -> Self {
         let kind = match camera.projection {
             Projection::Perspective { yfov, .. } => Kind::Perspective {
-                tan_half_fov_y: (0.5 * yfov.clamp(1e-4, 3.14)).tan(),
+                tan_half_fov_y: (0.5 * yfov.clamp(1e-4, 3.1)).tan(),
             },
             Projection::Orthographic { ymag, .. } => Kind::Orthographic {
                 half_height: ymag.abs().max(1e-6),

@@ -74,12 +74,8 @@ impl CameraConfig {
             return base.clone();
         }
         let from = self.look_from.map_or(base.position(), Vec3::from);
-        let at = self
-            .look_at
-            .map_or(from + base.forward(), |a| Vec3::from(a));
-        let up = self
-            .up
-            .map_or(base.transform.y_axis.truncate(), Vec3::from);
+        let at = self.look_at.map_or(from + base.forward(), Vec3::from);
+        let up = self.up.map_or(base.transform.y_axis.truncate(), Vec3::from);
         let fov = self.fov_y.unwrap_or(match base.projection {
             pathlight_scene::Projection::Perspective { yfov, .. } => yfov.to_degrees(),
             _ => 45.0,

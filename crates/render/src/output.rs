@@ -196,7 +196,8 @@ pub fn read_exr_layer(path: &Path, prefix: &str) -> Result<(u32, u32, Vec<Vec3>)
     };
     let mut out = vec![Vec3::ZERO; w * h];
     for (c, names) in [["R", "X"], ["G", "Y"], ["B", "Z"]].into_iter().enumerate() {
-        let ch = find(names).ok_or_else(|| error(path, format!("no channel {prefix} {names:?}")))?;
+        let ch =
+            find(names).ok_or_else(|| error(path, format!("no channel {prefix} {names:?}")))?;
         for (i, v) in ch.sample_data.values_as_f32().enumerate().take(w * h) {
             out[i][c] = v;
         }

@@ -223,7 +223,10 @@ impl PathTracer<'_> {
                     // Reflection needs both directions on the same geometric side.
                     let same_side = ls.wi.dot(surface.ng) * wo.dot(surface.ng) > 0.0;
                     let f = bsdf.eval(wo_local, wi_local) * wi_local.z.abs();
-                    if ls.pdf > 0.0 && f != Vec3::ZERO && (same_side || shading.params.transmission > 0.0) {
+                    if ls.pdf > 0.0
+                        && f != Vec3::ZERO
+                        && (same_side || shading.params.transmission > 0.0)
+                    {
                         let tr = self.transmittance(&surface, ls.wi, ls.distance);
                         if tr > 0.0 {
                             let w = if ls.delta {
@@ -259,8 +262,16 @@ impl PathTracer<'_> {
             if bs.transmitted && shading.volume {
                 let entering = wo_local.z > 0.0;
                 let eta = shading.params.ior;
-                eta_scale *= if entering { eta * eta } else { 1.0 / (eta * eta) };
-                sigma_a = if entering { shading.sigma_a } else { Vec3::ZERO };
+                eta_scale *= if entering {
+                    eta * eta
+                } else {
+                    1.0 / (eta * eta)
+                };
+                sigma_a = if entering {
+                    shading.sigma_a
+                } else {
+                    Vec3::ZERO
+                };
             }
             if beta == Vec3::ZERO || !beta.is_finite() {
                 break;

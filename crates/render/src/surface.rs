@@ -78,14 +78,19 @@ impl Surface {
         // Tangent frame: from the mesh's tangents when present, else any frame around ns.
         let (mut t, mut bt) = match &mesh.tangents {
             Some(ts) => {
-                let t4 = ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
+                let t4 =
+                    ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
                 let lin = world.linear[hit.instance as usize];
                 let t = lin * t4.xyz();
                 let t = (t - ns * ns.dot(t)).normalize_or_zero();
                 if t == Vec3::ZERO {
                     frame(ns)
                 } else {
-                    let sign = if ts[idx[0] as usize].w < 0.0 { -1.0 } else { 1.0 };
+                    let sign = if ts[idx[0] as usize].w < 0.0 {
+                        -1.0
+                    } else {
+                        1.0
+                    };
                     (t, ns.cross(t) * sign)
                 }
             }
@@ -281,7 +286,12 @@ mod tests {
 
     #[test]
     fn frames_are_orthonormal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::X] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::new(0.3, -0.5, 0.81).normalize(),
+            Vec3::X,
+        ] {
             let (t, b) = frame(n);
             assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
             assert!(t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5 && t.dot(b).abs() < 1e-5);

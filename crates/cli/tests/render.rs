@@ -1,0 +1,226 @@
+//! End-to-end tests of `pathlight render`: outputs, AOV layers, errors, determinism across
+//! thread counts, and Ctrl-C followed by `--resume`.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use common::{pathlight, stderr};
+use pathlight_render::output::read_exr_layer;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pathlight-render-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn png_output_has_the_requested_size() {
+    let dir = temp_dir("png");
+    let out = dir.join("cornell.png");
+    let r = pathlight(&[
+        "render",
+        "--spp",
+        "2",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    // IHDR: width and height, big-endian, at bytes 16..24.
+    assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 32);
+    assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 24);
+    // No temporary or checkpoint files are left behind.
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, vec![std::ffi::OsString::from("cornell.png")]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn exr_aovs_hold_consistent_layers() {
+    let dir = temp_dir("aovs");
+    let out = dir.join("cornell.exr");
+    let r = pathlight(&[
+        "render",
+        "--spp",
+        "4",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--out",
+        s(&out),
+        "--aovs",
+        "--quiet",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let layer = |name: &str| read_exr_layer(&out, name).unwrap().2;
+    let (rgb, direct, indirect) = (layer(""), layer("direct"), layer("indirect"));
+    for i in 0..rgb.len() {
+        assert!(
+            (rgb[i] - direct[i] - indirect[i]).abs().max_element()
+                < 1e-4 * (1.0 + rgb[i].max_element())
+        );
+    }
+    // Every pixel of the Cornell box view hits a surface: unit normals, positive depth, the
+    // MTL's albedos, and some indirect light.
+    let normal = layer("normal");
+    let albedo = layer("albedo");
+    let centre = 12 * 24 + 12;
+    assert!(
+        (normal[centre].length() - 1.0).abs() < 0.05,
+        "{}",
+        normal[centre]
+    );
+    assert!(albedo.iter().all(|a| a.max_element() <= 0.78 + 1e-4));
+    assert!(indirect.iter().map(|v| v.x).sum::<f32>() > 0.0);
+    let depth = read_exr_layer(&out, "depth");
+    assert!(
+        depth.is_err(),
+        "depth is a single Z channel, not a colour layer"
+    );
+    let variance = layer("variance");
+    assert!(variance.iter().all(|v| v.min_element() >= 0.0) && variance.iter().any(|v| v.x > 0.0));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_arguments_are_refused_with_a_clear_message() {
+    for (args, expect) in [
+        (&["render", "--spp", "0"][..], "--spp 0"),
+        (&["render", "--width", "0"], "--width 0"),
+        (&["render", "--width", "100000"], "--width 100000"),
+        (&["render", "--fov-y", "200"], "--fov-y 200"),
+        (
+            &["render", "--out", "image.bmp"],
+            "image.bmp: unknown image format",
+        ),
+        (&["render", "--look-from", "1,2"], "expected X,Y,Z"),
+        (&["render", "--look-from", "1,nan,2"], "not a finite number"),
+        (&["render", "no-such-scene.gltf"], "no-such-scene.gltf"),
+        (
+            &["render", "--resume", "--out", "/nonexistent-dir/x.png"],
+            "x.png.checkpoint",
+        ),
+    ] {
+        let r = pathlight(args);
+        assert_eq!(r.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&r).contains(expect), "{args:?}: {}", stderr(&r));
+    }
+}
+
+#[test]
+fn thread_count_does_not_change_the_image() {
+    let dir = temp_dir("threads");
+    let run = |threads: &str| {
+        let out = dir.join(format!("t{threads}.exr"));
+        let r = pathlight(&[
+            "render",
+            "--spp",
+            "3",
+            "--width",
+            "20",
+            "--height",
+            "16",
+            "--seed",
+            "3",
+            "--threads",
+            threads,
+            "--out",
+            s(&out),
+            "--quiet",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        read_exr_layer(&out, "").unwrap().2
+    };
+    assert_eq!(run("1"), run("2"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn ctrl_c_keeps_the_work_and_resume_finishes_it_exactly() {
+    let dir = temp_dir("resume");
+    let out = dir.join("stopped.exr");
+    let checkpoint = dir.join("stopped.exr.checkpoint");
+    let args = |out: &Path| {
+        vec![
+            "render".to_owned(),
+            "--spp".into(),
+            "400".into(),
+            "--width".into(),
+            "48".into(),
+            "--height".into(),
+            "48".into(),
+            "--out".into(),
+            s(out).into(),
+            "--quiet".into(),
+            "--checkpoint-every".into(),
+            "0.000001".into(),
+        ]
+    };
+    let child = Command::new(env!("CARGO_BIN_EXE_pathlight"))
+        .args(args(&out))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The first checkpoint appears after the first pass (1 sample per pixel): stop then.
+    let start = Instant::now();
+    while !checkpoint.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no checkpoint appeared"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let output = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{err}");
+    assert!(err.contains("stopped") && err.contains("--resume"), "{err}");
+    assert!(out.exists() && checkpoint.exists());
+
+    let mut resume = args(&out);
+    resume.push("--resume".into());
+    let r = Command::new(env!("CARGO_BIN_EXE_pathlight"))
+        .args(&resume)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(
+        !checkpoint.exists(),
+        "a finished render removes its default checkpoint"
+    );
+
+    let straight = dir.join("straight.exr");
+    let r = Command::new(env!("CARGO_BIN_EXE_pathlight"))
+        .args(args(&straight))
+        .output()
+        .unwrap();
+    assert!(r.status.success());
+    assert_eq!(
+        read_exr_layer(&out, "").unwrap().2,
+        read_exr_layer(&straight, "").unwrap().2
+    );
+
+    std::fs::remove_dir_all(&dir).unwrap();
+}

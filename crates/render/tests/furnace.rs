@@ -1,0 +1,109 @@
+//! White furnace tests of the whole path tracer: under a uniform environment of radiance 1,
+//! objects that neither absorb nor emit are invisible (every pixel has expected value 1,
+//! whatever the geometry and however many bounces the light takes).
+
+mod common;
+
+use common::{config, quad, scene, sphere, world};
+use glam::Vec3;
+use pathlight_render::renderer::render;
+use pathlight_scene::{Material, Volume};
+
+/// Renders and returns (mean over the image, largest per-pixel deviation from 1 of 4x4-pixel
+/// block means).
+fn furnace(materials: Vec<Material>, meshes: Vec<pathlight_scene::Mesh>, spp: u32) -> (f32, f32) {
+    let world = world(scene(
+        meshes,
+        materials,
+        Some(Vec3::ONE),
+        Vec3::new(0.0, 0.5, 4.0),
+    ));
+    let cfg = config(48, 48, spp);
+    let camera = world.camera(&cfg);
+    let film = render(&world, &camera, &cfg);
+    let mean = film
+        .pixels
+        .iter()
+        .map(|p| p.mean.element_sum() / 3.0)
+        .sum::<f32>()
+        / film.pixels.len() as f32;
+    let mut worst = 0.0f32;
+    for by in 0..12 {
+        for bx in 0..12 {
+            let mut s = 0.0;
+            for y in 0..4 {
+                for x in 0..4 {
+                    s += film.pixels[(by * 4 + y) * 48 + bx * 4 + x]
+                        .mean
+                        .element_sum()
+                        / 3.0;
+                }
+            }
+            worst = worst.max((s / 16.0 - 1.0).abs());
+        }
+    }
+    eprintln!("furnace: mean {mean}, worst block {worst}");
+    (mean, worst)
+}
+
+#[test]
+fn white_lambertian_sphere_and_open_box_vanish() {
+    // A white sphere above a white quad, and a second quad closing a corner: light bounces
+    // between them many times (no Russian roulette while the throughput stays 1).
+    let white = Material::lambertian("white", Vec3::ONE);
+    let mut floor = quad(0, 2.0, 0.0);
+    for p in &mut floor.positions {
+        *p = Vec3::new(p.x, -1.0, p.y);
+    }
+    floor.normals = Some(vec![Vec3::Y; 4]);
+    let (mean, worst) = furnace(vec![white], vec![sphere(0, 3), floor], 64);
+    assert!((mean - 1.0).abs() < 2e-3, "mean {mean}");
+    assert!(worst < 0.02, "worst block {worst}");
+}
+
+#[test]
+fn smooth_glass_sphere_vanishes() {
+    // Reflection + refraction of a lossless dielectric sum to 1 (the 1/eta^2 radiance scaling
+    // cancels on the way in and out), including total internal reflection.
+    let glass = Material {
+        name: "glass".into(),
+        base_color: glam::Vec4::ONE,
+        metallic: 0.0,
+        roughness: 0.0,
+        transmission: 1.0,
+        volume: Some(Volume {
+            thickness: 1.0,
+            thickness_texture: None,
+            attenuation_distance: f32::INFINITY,
+            attenuation_color: Vec3::ONE,
+        }),
+        double_sided: true,
+        ..Material::default()
+    };
+    let (mean, worst) = furnace(vec![glass], vec![sphere(0, 4)], 64);
+    assert!((mean - 1.0).abs() < 5e-3, "mean {mean}");
+    assert!(worst < 0.05, "worst block {worst}");
+}
+
+#[test]
+fn grey_lambertian_sphere_matches_the_geometric_series() {
+    // A convex object reflects each ray once: a sphere of albedo a under radiance 1 looks
+    // exactly a (no inter-reflection), the background 1.
+    let grey = Material::lambertian("grey", Vec3::splat(0.5));
+    let world = world(scene(
+        vec![sphere(0, 4)],
+        vec![grey],
+        Some(Vec3::ONE),
+        Vec3::new(0.0, 0.0, 4.0),
+    ));
+    let cfg = config(32, 32, 32);
+    let camera = world.camera(&cfg);
+    let film = render(&world, &camera, &cfg);
+    // The centre pixels see the sphere.
+    for (x, y) in [(15, 15), (16, 16), (14, 17)] {
+        let v = film.pixels[y * 32 + x].mean;
+        assert!((v - Vec3::splat(0.5)).abs().max_element() < 0.03, "{v}");
+    }
+    // A corner sees the environment.
+    assert!((film.pixels[0].mean - Vec3::ONE).abs().max_element() < 1e-5);
+}
