@@ -19,9 +19,9 @@ use crate::world::World;
 
 /// Sampler dimensions used by the camera (film jitter and lens).
 const CAMERA_DIMENSIONS: u32 = 4;
-/// Sampler dimensions used per path vertex (light choice, light point, lobe, direction,
-/// Russian roulette).
-const VERTEX_DIMENSIONS: u32 = 7;
+/// Sampler dimensions used per path vertex: light choice, light point (2), lobe, direction (2),
+/// Russian roulette, and one spare so that each vertex starts a fresh set of four.
+const VERTEX_DIMENSIONS: u32 = 8;
 /// Cut-out surfaces a ray may pass through before it counts as blocked.
 const MAX_ALPHA_LAYERS: u32 = 64;
 

@@ -17,6 +17,10 @@ pub struct PixelSampler {
     seed: u32,
     index: u32,
     dimension: u32,
+    /// The values of dimensions `4 * cached_set .. 4 * cached_set + 4`, computed together
+    /// (`sobol_burley::sample_4d` does four dimensions in one SIMD pass).
+    cache: [f32; 4],
+    cached_set: u32,
 }
 
 impl PixelSampler {
@@ -29,6 +33,8 @@ impl PixelSampler {
             seed: (h ^ (h >> 32)) as u32,
             index: sample_index % SEQUENCE_LENGTH,
             dimension: 0,
+            cache: [0.0; 4],
+            cached_set: u32::MAX,
         }
     }
 
@@ -38,7 +44,12 @@ impl PixelSampler {
         let d = self.dimension;
         self.dimension += 1;
         if d < sobol_burley::NUM_DIMENSIONS {
-            sobol_burley::sample(self.index, d, self.seed)
+            let set = d / 4;
+            if set != self.cached_set {
+                self.cache = sobol_burley::sample_4d(self.index, set, self.seed);
+                self.cached_set = set;
+            }
+            self.cache[(d % 4) as usize]
         } else {
             // Past the table: hashed values (deep path vertices, where stratification no
             // longer matters).
@@ -79,6 +90,17 @@ mod tests {
                 cells[c] += 1;
             }
             assert!(cells.iter().all(|&c| c == 1), "{cells:?}");
+        }
+    }
+
+    #[test]
+    fn cached_sets_match_single_dimensions() {
+        let mut s = PixelSampler::new(5, 3, 4, 77);
+        s.set_dimension(6);
+        let values: Vec<f32> = (0..9).map(|_| s.next_1d()).collect();
+        let seed = PixelSampler::new(5, 3, 4, 77).seed;
+        for (i, v) in values.iter().enumerate() {
+            assert_eq!(*v, sobol_burley::sample(77, 6 + i as u32, seed));
         }
     }
 

@@ -9,9 +9,13 @@ use glam::Vec3;
 use pathlight_render::renderer::render;
 use pathlight_scene::{Material, Volume};
 
-/// Renders and returns (mean over the image, largest per-pixel deviation from 1 of 4x4-pixel
-/// block means).
-fn furnace(materials: Vec<Material>, meshes: Vec<pathlight_scene::Mesh>, spp: u32) -> (f32, f32) {
+/// Renders and returns (mean over the image, its standard error from the pixels' sample
+/// variances, largest deviation from 1 of a 4x4-pixel block mean).
+fn furnace(
+    materials: Vec<Material>,
+    meshes: Vec<pathlight_scene::Mesh>,
+    spp: u32,
+) -> (f32, f32, f32) {
     let world = world(scene(
         meshes,
         materials,
@@ -42,8 +46,15 @@ fn furnace(materials: Vec<Material>, meshes: Vec<pathlight_scene::Mesh>, spp: u3
             worst = worst.max((s / 16.0 - 1.0).abs());
         }
     }
-    eprintln!("furnace: mean {mean}, worst block {worst}");
-    (mean, worst)
+    let se = film
+        .pixels
+        .iter()
+        .map(|p| p.variance().element_sum() / 3.0 / p.n as f32)
+        .sum::<f32>()
+        .sqrt()
+        / film.pixels.len() as f32;
+    eprintln!("furnace: mean {mean} (standard error {se}), worst block {worst}");
+    (mean, se, worst)
 }
 
 #[test]
@@ -56,8 +67,16 @@ fn white_lambertian_sphere_and_open_box_vanish() {
         *p = Vec3::new(p.x, -1.0, p.y);
     }
     floor.normals = Some(vec![Vec3::Y; 4]);
-    let (mean, worst) = furnace(vec![white], vec![sphere(0, 3), floor], 64);
-    assert!((mean - 1.0).abs() < 2e-3, "mean {mean}");
+    // Flat shading: interpolated normals on a faceted sphere are not energy-conserving (paths
+    // whose sampled direction falls below the true surface are dropped), which would bias
+    // this test by ~0.2%.
+    let mut ball = sphere(0, 3);
+    ball.normals = None;
+    let (mean, se, worst) = furnace(vec![white], vec![ball, floor], 256);
+    assert!(
+        (mean - 1.0).abs() < 4.0 * se + 1e-4,
+        "mean {mean}, standard error {se}"
+    );
     assert!(worst < 0.02, "worst block {worst}");
 }
 
@@ -80,9 +99,14 @@ fn smooth_glass_sphere_vanishes() {
         double_sided: true,
         ..Material::default()
     };
-    let (mean, worst) = furnace(vec![glass], vec![sphere(0, 4)], 64);
-    assert!((mean - 1.0).abs() < 5e-3, "mean {mean}");
-    assert!(worst < 0.05, "worst block {worst}");
+    // Flat shading: with exact geometry every path's weight is exactly 1 (Fresnel reflection
+    // and refraction are chosen in proportion to their weights), so the image is 1 to float
+    // precision. (Interpolated normals lose ~0.06% here, as in any renderer that uses them.)
+    let mut ball = sphere(0, 4);
+    ball.normals = None;
+    let (mean, _, worst) = furnace(vec![glass], vec![ball], 64);
+    assert!((mean - 1.0).abs() < 1e-5, "mean {mean}");
+    assert!(worst < 1e-4, "worst block {worst}");
 }
 
 #[test]
