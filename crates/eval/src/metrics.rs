@@ -1,0 +1,1 @@
+//! Image error metrics. To be written (helper).

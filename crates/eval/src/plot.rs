@@ -1,0 +1,1 @@
+//! Plots as PNG. To be written (helper).

@@ -1,0 +1,1 @@
+//! The HTML report. To be written (helper).
