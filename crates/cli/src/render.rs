@@ -1,7 +1,7 @@
 //! `pathlight render`: a converged image from the reference path tracer, with a progress bar,
 //! Ctrl-C that keeps what is done, periodic checkpoints and `--resume`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -224,21 +224,13 @@ fn scene_identity(world: &World, args: &SceneArgs) -> String {
 }
 
 pub fn run(args: &RenderArgs) -> Result<()> {
-    Format::check(&args.out)?;
+    pathlight_render::output::Format::from_path(&args.out)?;
     let threads = args.threads.unwrap_or(0);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .context("starting the worker threads")?;
     pool.install(|| render(args))
-}
-
-struct Format;
-impl Format {
-    fn check(out: &Path) -> Result<()> {
-        pathlight_render::output::Format::from_path(out)?;
-        Ok(())
-    }
 }
 
 fn render(args: &RenderArgs) -> Result<()> {

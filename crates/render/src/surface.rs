@@ -76,7 +76,7 @@ impl Surface {
             cs[idx[0] as usize] * w + cs[idx[1] as usize] * u + cs[idx[2] as usize] * v
         });
         // Tangent frame: from the mesh's tangents when present, else any frame around ns.
-        let (mut t, mut bt) = match &mesh.tangents {
+        let (mut t, bt) = match &mesh.tangents {
             Some(ts) => {
                 let t4 =
                     ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
@@ -108,23 +108,19 @@ impl Surface {
             if mapped.dot(ng) * ns.dot(ng) > 0.0 {
                 ns = mapped;
             }
-            let (t2, b2) = reframe(ns, t);
-            t = t2;
-            bt = b2;
+            t = reframe(ns, t).0;
         }
         let front = ray.direction.dot(ng) < 0.0;
         let refracting = mat.transmission > 0.0 && mat.volume.is_some();
         if !front && !refracting {
             ng = -ng;
             ns = -ns;
-            bt = -bt;
         }
         // Interpolated normals can face away from the geometric side; keep them consistent.
         if ns.dot(ng) < 0.0 {
             ns = (ns - ng * (2.0 * ns.dot(ng))).normalize_or(ng);
         }
         let (t, b) = reframe(ns, t);
-        let _ = bt;
         Self {
             p,
             ng,
