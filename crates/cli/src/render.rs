@@ -236,9 +236,6 @@ pub fn run(args: &RenderArgs) -> Result<()> {
 fn render(args: &RenderArgs) -> Result<()> {
     let start = Instant::now();
     let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
-    for w in &scene.warnings {
-        log::warn!("{w}");
-    }
     let aspect = scene.cameras.first().and_then(|c| match c.projection {
         pathlight_scene::Projection::Perspective { aspect, .. } => aspect,
         pathlight_scene::Projection::Orthographic { xmag, ymag, .. } => Some(xmag / ymag),
