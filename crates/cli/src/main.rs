@@ -1,6 +1,6 @@
 //! `pathlight`: the command-line front end of the path tracer.
 //!
-//! One subcommand per job. Today `info`, `render` and `bench` exist; `view`, `play` and `eval`
+//! One subcommand per job. Today `info`, `render`, `eval` and `bench` exist; `view` and `play`
 //! will slot in as further [`Command`] variants, each flattening the shared [`SceneArgs`] so that
 //! every command loads scenes the same way.
 //!
@@ -8,6 +8,7 @@
 //! printed to stderr as `error: <message>`).
 
 mod bench;
+mod eval;
 mod info;
 mod memory;
 mod render;
@@ -40,6 +41,9 @@ pub enum Command {
     /// Render an image with the reference path tracer (the built-in Cornell box without a
     /// scene).
     Render(render::RenderArgs),
+    /// Run an experiment (TOML spec): error against references over samples and time, with
+    /// plots and an HTML report.
+    Eval(eval::EvalArgs),
     /// Measure: `bench rays` times the ray tracing backends on fixed ray sets.
     Bench(bench::BenchArgs),
 }
@@ -75,6 +79,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(args) => info::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Eval(args) => eval::run(&args),
     }
 }
 

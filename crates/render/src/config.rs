@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bsdf::Microfacet;
 use crate::light::LightSelection;
+use crate::sampler::SamplerKind;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -18,6 +19,8 @@ pub struct Config {
     pub spp: u32,
     /// Seeds every random decision of the image.
     pub seed: u64,
+    /// Sample values: Owen-scrambled Sobol points or independent random numbers.
+    pub sampler: SamplerKind,
     /// Maximum number of scattering events along a path; `None`: unlimited (Russian roulette
     /// ends paths, with a hard stop at [`MAX_PATH_VERTICES`]).
     pub max_bounces: Option<u32>,
@@ -26,6 +29,28 @@ pub struct Config {
     pub microfacet: Microfacet,
     pub light_selection: LightSelection,
     pub camera: CameraConfig,
+}
+
+/// Largest image side accepted.
+pub const MAX_SIDE: u32 = 16384;
+/// Largest sample count accepted.
+pub const MAX_SPP: u32 = 1 << 24;
+
+/// A configuration value out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field} {value}: must be {requirement}")]
+pub struct ConfigError {
+    /// The field's name as in the configuration (`fov_y`, `camera.lens_radius` is `lens_radius`).
+    pub field: &'static str,
+    pub value: String,
+    pub requirement: String,
+}
+
+impl ConfigError {
+    /// The field's name as a command-line option (`fov_y` is `--fov-y`).
+    pub fn option(&self) -> String {
+        format!("--{}", self.field.replace('_', "-"))
+    }
 }
 
 /// Safety stop for paths of unlimited depth (reached only by pathological scenes, e.g. a
@@ -39,12 +64,62 @@ impl Default for Config {
             height: 360,
             spp: 64,
             seed: 0,
+            sampler: SamplerKind::Sobol,
             max_bounces: None,
             rr_start: 3,
             microfacet: Microfacet::Ggx,
             light_selection: LightSelection::Power,
             camera: CameraConfig::default(),
         }
+    }
+}
+
+impl Config {
+    /// Checks every value's range: image sides in 1..=[`MAX_SIDE`], spp in 1..=[`MAX_SPP`],
+    /// field of view in (0, 180), finite non-negative lens radius, finite positive focus
+    /// distance, finite camera vectors.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let err = |field, value: &dyn std::fmt::Display, requirement: String| ConfigError {
+            field,
+            value: value.to_string(),
+            requirement,
+        };
+        for (field, v) in [("width", self.width), ("height", self.height)] {
+            if v == 0 || v > MAX_SIDE {
+                return Err(err(field, &v, format!("between 1 and {MAX_SIDE}")));
+            }
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return Err(err("spp", &self.spp, format!("between 1 and {MAX_SPP}")));
+        }
+        let cam = &self.camera;
+        if let Some(f) = cam.fov_y {
+            if !(f > 0.0 && f < 180.0) {
+                return Err(err("fov_y", &f, "between 0 and 180 degrees".into()));
+            }
+        }
+        if !(cam.lens_radius.is_finite() && cam.lens_radius >= 0.0) {
+            return Err(err(
+                "lens_radius",
+                &cam.lens_radius,
+                "finite and >= 0".into(),
+            ));
+        }
+        if let Some(d) = cam.focus_distance {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(err("focus_distance", &d, "finite and > 0".into()));
+            }
+        }
+        for (field, v) in [
+            ("look_from", cam.look_from),
+            ("look_at", cam.look_at),
+            ("up", cam.up),
+        ] {
+            if let Some(v) = v.filter(|v| !v.iter().all(|c| c.is_finite())) {
+                return Err(err(field, &format!("{v:?}"), "finite".into()));
+            }
+        }
+        Ok(())
     }
 }
 

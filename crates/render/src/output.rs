@@ -78,9 +78,14 @@ pub fn encode_png(width: u32, height: u32, rgb: &[Vec3], exposure: f32) -> Vec<u
                 .map(|v| linear_to_srgb8(if v.is_finite() { v } else { 0.0 }))
         })
         .collect();
+    encode_rgb8_png(width, height, &bytes)
+}
+
+/// Encodes 8-bit RGB (row-major, 3 bytes per pixel) as a PNG.
+pub fn encode_rgb8_png(width: u32, height: u32, rgb8: &[u8]) -> Vec<u8> {
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(&bytes, width, height, image::ExtendedColorType::Rgb8)
+        .write_image(rgb8, width, height, image::ExtendedColorType::Rgb8)
         .expect("encoding a PNG into memory cannot fail");
     out
 }

@@ -88,7 +88,8 @@ fn finite_or_zero(v: Vec3) -> Vec3 {
 impl PathTracer<'_> {
     /// Sample `index` of pixel (`x`, `y`): a box-filtered (uniform jitter) camera path.
     pub fn sample_pixel(&self, x: u32, y: u32, index: u32) -> PathSample {
-        let mut sampler = PixelSampler::new(self.config.seed, x, y, index);
+        let mut sampler =
+            PixelSampler::with_kind(self.config.sampler, self.config.seed, x, y, index);
         let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
         let lens = sampler.next_2d();
         let ray = self.camera.ray(film, lens).ray;

@@ -3,9 +3,25 @@
 //!
 //! Every value depends only on (image seed, pixel, sample index, dimension), never on the thread
 //! that asks, so images are the same whatever the thread count.
+//!
+//! [`SamplerKind::Independent`] replaces the Sobol points by independent uniform values (hashed
+//! from the same coordinates): plain Monte Carlo, whose error falls exactly as 1/spp, which
+//! experiments use as the textbook baseline.
 
 use glam::Vec2;
 use pathlight_core::rng::{hash, unit_f32};
+use serde::{Deserialize, Serialize};
+
+/// Where the sample values come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SamplerKind {
+    /// Owen-scrambled Sobol points (stratified in every pair of consecutive dimensions).
+    #[default]
+    Sobol,
+    /// Independent uniform values (plain Monte Carlo).
+    Independent,
+}
 
 /// Samples per Sobol sequence in `sobol_burley`; later indices continue in a fresh,
 /// independently scrambled sequence.
@@ -21,12 +37,20 @@ pub struct PixelSampler {
     /// (`sobol_burley::sample_4d` does four dimensions in one SIMD pass).
     cache: [f32; 4],
     cached_set: u32,
+    independent: bool,
 }
 
 impl PixelSampler {
-    /// The sampler of sample `sample_index` of pixel (`x`, `y`) of an image rendered with `seed`.
+    /// The Sobol sampler of sample `sample_index` of pixel (`x`, `y`) of an image rendered with
+    /// `seed`.
     #[inline]
     pub fn new(seed: u64, x: u32, y: u32, sample_index: u32) -> Self {
+        Self::with_kind(SamplerKind::Sobol, seed, x, y, sample_index)
+    }
+
+    /// The sampler of the given kind for sample `sample_index` of pixel (`x`, `y`).
+    #[inline]
+    pub fn with_kind(kind: SamplerKind, seed: u64, x: u32, y: u32, sample_index: u32) -> Self {
         let sequence = sample_index / SEQUENCE_LENGTH;
         let h = hash(&[seed, x as u64, y as u64, sequence as u64]);
         Self {
@@ -35,6 +59,7 @@ impl PixelSampler {
             dimension: 0,
             cache: [0.0; 4],
             cached_set: u32::MAX,
+            independent: kind == SamplerKind::Independent,
         }
     }
 
@@ -43,7 +68,7 @@ impl PixelSampler {
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dimension;
         self.dimension += 1;
-        if d < sobol_burley::NUM_DIMENSIONS {
+        if d < sobol_burley::NUM_DIMENSIONS && !self.independent {
             let set = d / 4;
             if set != self.cached_set {
                 self.cache = sobol_burley::sample_4d(self.index, set, self.seed);
@@ -51,8 +76,8 @@ impl PixelSampler {
             }
             self.cache[(d % 4) as usize]
         } else {
-            // Past the table: hashed values (deep path vertices, where stratification no
-            // longer matters).
+            // Independent values, or past the table: hashed values (deep path vertices, where
+            // stratification no longer matters).
             let h = hash(&[self.seed as u64, self.index as u64, d as u64]);
             unit_f32((h >> 32) as u32)
         }
@@ -111,6 +136,26 @@ mod tests {
         assert_ne!(a, b);
         assert_eq!(a, PixelSampler::new(1, 0, 0, 5).next_1d());
         assert_ne!(a, PixelSampler::new(2, 0, 0, 5).next_1d());
+    }
+
+    /// Independent values are not stratified: over 256 samples some of the 256 cells of the
+    /// 16 x 16 grid stay empty (expected 256 (1 - 1/256)^256, about 94), and the mean of each
+    /// dimension is uniform's.
+    #[test]
+    fn independent_values_are_uniform_and_not_stratified() {
+        let n = 256;
+        let mut cells = vec![0u32; n];
+        let mut sum = 0.0f64;
+        for i in 0..n as u32 {
+            let mut s = PixelSampler::with_kind(SamplerKind::Independent, 7, 3, 1, i);
+            let p = s.next_2d();
+            cells[(p.y * 16.0) as usize * 16 + (p.x * 16.0) as usize] += 1;
+            sum += (p.x + p.y) as f64;
+        }
+        let empty = cells.iter().filter(|&&c| c == 0).count();
+        assert!((60..130).contains(&empty), "{empty} empty cells");
+        // Mean of 2n uniforms: standard deviation 1/sqrt(24 n) = 0.013.
+        assert!((sum / (2 * n) as f64 - 0.5).abs() < 0.06);
     }
 
     #[test]

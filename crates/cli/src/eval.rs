@@ -1,0 +1,117 @@
+//! `pathlight eval SPEC.toml --out DIR`: runs an experiment (see `experiments/README.md`) with a
+//! progress bar and writes `results.json`, plots, images and `report.html` into DIR. Ctrl-C
+//! stops it, keeping the reference's checkpoint and writing what was measured.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use pathlight_eval::experiment::{spec_dir, Progress, Runner};
+use pathlight_eval::publish::publish;
+use pathlight_eval::reference::ReferenceCache;
+use pathlight_eval::spec::Spec;
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Experiment spec (TOML); its paths are relative to its folder.
+    #[arg(value_name = "SPEC")]
+    pub spec: PathBuf,
+
+    /// Output folder: results.json, plots/, images/ and report.html.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Where references are cached (and their checkpoints kept).
+    #[arg(long, value_name = "DIR", default_value = ".pathlight-cache")]
+    pub cache: PathBuf,
+
+    /// Worker threads [default: all cores].
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+
+    /// Print one JSON object with the output paths and the slopes as the last line.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &EvalArgs) -> Result<()> {
+    let spec = Spec::load(&args.spec)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("starting the worker threads")?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let bar = if args.quiet || args.json {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(1)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg} ETA {eta}",
+        )
+        .expect("a valid template"),
+    );
+    let task = Mutex::new(String::new());
+    let progress = |p: &Progress| {
+        let mut t = task.lock().expect("not poisoned");
+        if *t != p.task {
+            *t = p.task.to_owned();
+            bar.reset();
+            bar.set_message(p.task.to_owned());
+        }
+        bar.set_length(p.total.max(1));
+        bar.set_position(p.done);
+    };
+    let runner = Runner {
+        spec: &spec,
+        spec_dir: spec_dir(&args.spec),
+        cache: ReferenceCache::new(&args.cache),
+        progress: &progress,
+        cancel: &cancel,
+    };
+    let outcome = pool.install(|| runner.run())?;
+    bar.finish_and_clear();
+    let report = publish(&outcome, &args.out)?;
+    let results = &outcome.results;
+    if !results.complete {
+        bail!(
+            "stopped: what was measured is in {} (a reference in progress continues from its checkpoint in {} next time)",
+            args.out.display(),
+            args.cache.display()
+        );
+    }
+    eprintln!(
+        "{}: {} measurements, report {}",
+        spec.name,
+        results.measurements.len(),
+        report.display()
+    );
+    for s in &results.slopes {
+        eprintln!(
+            "  {:<24} {:<8} slope against {:<3} {:+.3}",
+            s.configuration, s.metric, s.against, s.slope
+        );
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "results": args.out.join("results.json"),
+                "report": report,
+                "slopes": results.slopes,
+            })
+        );
+    }
+    Ok(())
+}

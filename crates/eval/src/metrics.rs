@@ -1,1 +1,0 @@
-//! Image error metrics. To be written (helper).

@@ -1,0 +1,246 @@
+//! The experiment runner end to end on small Cornell box images: references are cached and
+//! reused, equal-samples measurements are deterministic, a stopped reference resumes to the
+//! same image, camera paths give one reference per measured view, and publishing writes the
+//! files the report shows.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use pathlight_eval::experiment::{Outcome, Progress, Runner};
+use pathlight_eval::metrics::Metric;
+use pathlight_eval::publish::publish;
+use pathlight_eval::reference::ReferenceCache;
+use pathlight_eval::results::{BudgetPoint, Measurement, Results};
+use pathlight_eval::spec::Spec;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pathlight-eval-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+const SPEC: &str = r#"
+name = "small"
+width = 24
+height = 20
+metrics = ["mse", "relmse", "ssim"]
+repetitions = 2
+[budget]
+spp = [1, 2, 4]
+[reference]
+spp = 16
+[[configuration]]
+name = "independent"
+[configuration.config]
+sampler = "independent"
+max_bounces = 3
+[[configuration]]
+name = "sobol"
+[configuration.config]
+max_bounces = 3
+"#;
+
+fn run(spec: &Spec, cache: &Path, cancel_after: Option<u64>) -> Outcome {
+    let cancel = AtomicBool::new(false);
+    let progress = |p: &Progress| {
+        assert!(p.done <= p.total, "{} > {} in {}", p.done, p.total, p.task);
+        if cancel_after.is_some_and(|n| p.done >= n) {
+            cancel.store(true, Ordering::Relaxed);
+        }
+    };
+    Runner {
+        spec,
+        spec_dir: PathBuf::from("."),
+        cache: ReferenceCache::new(cache),
+        progress: &progress,
+        cancel: &cancel,
+    }
+    .run()
+    .unwrap()
+}
+
+/// The measurements without their timings (which vary from run to run).
+fn untimed(r: &Results) -> Vec<Measurement> {
+    r.measurements
+        .iter()
+        .map(|m| Measurement {
+            ms: 0.0,
+            stages: Default::default(),
+            ..m.clone()
+        })
+        .collect()
+}
+
+#[test]
+fn references_are_cached_and_measurements_are_deterministic() {
+    let spec = Spec::parse(SPEC).unwrap();
+    let cache = temp_dir("cache");
+    let first = run(&spec, &cache, None);
+    let r = &first.results;
+    assert!(r.complete);
+    assert_eq!(r.references.len(), 1);
+    assert!(!r.references[0].info.cached);
+    // 2 configurations x 2 repetitions x 3 budgets.
+    assert_eq!(r.measurements.len(), 12);
+    for m in &r.measurements {
+        let BudgetPoint::Spp(n) = m.budget else {
+            panic!("no time budgets in this spec")
+        };
+        assert_eq!(m.spp, n as f64);
+        assert!(m.ms > 0.0 && m.stages.values().sum::<f64>() == m.ms);
+        assert_eq!(m.metrics.len(), 3);
+        assert!(m.metrics[&Metric::Mse] > 0.0);
+    }
+    // Repetitions use different seeds.
+    assert_ne!(r.measurements[0].seed, r.measurements[3].seed);
+    assert_ne!(r.measurements[0].metrics, r.measurements[3].metrics);
+    // Error falls with samples (each image's noise is independent of the others' only across
+    // repetitions, but 4 spp beats 1 spp on any seed of this box).
+    assert!(r.measurements[2].metrics[&Metric::Mse] < r.measurements[0].metrics[&Metric::Mse]);
+
+    let second = run(&spec, &cache, None);
+    assert!(second.results.references[0].info.cached);
+    assert_eq!(
+        second.results.references[0].info.key,
+        r.references[0].info.key
+    );
+    assert_eq!(untimed(&second.results), untimed(r));
+    let snaps = second.snapshots.as_ref().unwrap();
+    assert_eq!(snaps.reference, first.snapshots.as_ref().unwrap().reference);
+    assert_eq!(snaps.images.len(), 2);
+
+    // Another reference setting is another cache entry.
+    let mut other = spec.clone();
+    other.reference.spp = 8;
+    let third = run(&other, &cache, None);
+    assert!(!third.results.references[0].info.cached);
+    assert_ne!(
+        third.results.references[0].info.key,
+        r.references[0].info.key
+    );
+    std::fs::remove_dir_all(&cache).unwrap();
+}
+
+#[test]
+fn a_stopped_reference_resumes_to_the_same_image() {
+    let spec = Spec::parse(SPEC).unwrap();
+    let whole = temp_dir("whole");
+    let expected = run(&spec, &whole, None).snapshots.unwrap().reference;
+
+    let cache = temp_dir("stopped");
+    let stopped = run(&spec, &cache, Some(24 * 20 * 5));
+    assert!(!stopped.results.complete);
+    assert!(stopped.snapshots.is_none());
+    let checkpoints: Vec<_> = std::fs::read_dir(cache.join("references"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "checkpoint"))
+        .collect();
+    assert_eq!(
+        checkpoints.len(),
+        1,
+        "the stopped reference keeps a checkpoint"
+    );
+
+    let resumed = run(&spec, &cache, None);
+    assert!(resumed.results.complete);
+    assert_eq!(resumed.snapshots.unwrap().reference, expected);
+    assert!(
+        !checkpoints[0].exists(),
+        "the finished reference drops its checkpoint"
+    );
+    for d in [whole, cache] {
+        std::fs::remove_dir_all(d).unwrap();
+    }
+}
+
+#[test]
+fn rotation_measured_at_every_view_has_one_reference_per_view() {
+    let mut spec = Spec::parse(SPEC).unwrap();
+    spec.repetitions = 1;
+    spec.configurations.truncate(1);
+    spec.budget.spp = vec![2];
+    spec.reference.spp = 4;
+    spec.camera.path = pathlight_eval::spec::PathKind::Rotation;
+    spec.camera.degrees = 20.0;
+    spec.camera.step_degrees = 10.0;
+    spec.camera.measure = pathlight_eval::spec::Measure::Every;
+    let cache = temp_dir("rotation");
+    let out = run(&spec, &cache, None).results;
+    assert_eq!(out.views.len(), 3);
+    assert_eq!(out.references.len(), 3);
+    let keys: std::collections::HashSet<_> = out.references.iter().map(|r| &r.info.key).collect();
+    assert_eq!(keys.len(), 3, "each view has its own reference");
+    let views: Vec<usize> = out.measurements.iter().map(|m| m.view).collect();
+    assert_eq!(views, vec![0, 1, 2]);
+
+    // Measured only at the final view, after steps of samples_per_step.
+    spec.camera.measure = pathlight_eval::spec::Measure::Final;
+    spec.camera.samples_per_step = 2;
+    let out = run(&spec, &cache, None).results;
+    assert_eq!(out.references.len(), 1);
+    assert!(
+        out.references[0].info.cached,
+        "the last view's reference is reused"
+    );
+    assert_eq!(out.measurements.len(), 1);
+    assert_eq!(out.measurements[0].view, 2);
+    std::fs::remove_dir_all(&cache).unwrap();
+}
+
+#[test]
+fn time_budgets_are_met_and_published_files_exist() {
+    let mut spec = Spec::parse(SPEC).unwrap();
+    spec.repetitions = 1;
+    spec.budget.time_ms = vec![5.0, 20.0];
+    let dir = temp_dir("publish");
+    let outcome = run(&spec, &dir.join("cache"), None);
+    let timed: Vec<_> = outcome
+        .results
+        .measurements
+        .iter()
+        .filter(|m| matches!(m.budget, BudgetPoint::TimeMs(_)))
+        .collect();
+    assert_eq!(timed.len(), 4);
+    for m in &timed {
+        let BudgetPoint::TimeMs(t) = m.budget else {
+            unreachable!()
+        };
+        assert!(m.ms >= t && m.spp >= 1.0, "{m:?}");
+    }
+    let out = dir.join("out");
+    let report = publish(&outcome, &out).unwrap();
+    let html = std::fs::read_to_string(&report).unwrap();
+    // results.json holds every measurement, and reads back as Results. (serde_json's default
+    // number parser may differ from the written value in the last bit, so the comparison goes
+    // through the same text on both sides.)
+    let text = std::fs::read(out.join("results.json")).unwrap();
+    let json: Results = serde_json::from_slice(&text).unwrap();
+    assert_eq!(json.measurements.len(), outcome.results.measurements.len());
+    let on_disk: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    let written: serde_json::Value =
+        serde_json::from_str(&serde_json::to_string(&outcome.results.measurements).unwrap())
+            .unwrap();
+    assert_eq!(on_disk["measurements"], written);
+    for file in [
+        "plots/mse-vs-spp.png",
+        "plots/relmse-vs-time.png",
+        "plots/ssim-equal.png",
+        "plots/stages.png",
+        "images/reference.png",
+        "images/0-independent.png",
+        "images/1-sobol-error.png",
+        "images/crop0-reference.png",
+        "images/crop0-1-sobol-error.png",
+    ] {
+        assert!(out.join(file).is_file(), "{file} missing");
+        assert!(html.contains(file), "the report does not show {file}");
+    }
+    // Every image the report shows exists.
+    for part in html.split("src=\"").skip(1) {
+        let src = &part[..part.find('"').unwrap()];
+        assert!(out.join(src).is_file(), "{src} is shown but missing");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
