@@ -1,5 +1,6 @@
 //! `pathlight bench`: measurements. `bench rays` times the ray tracing backends on fixed ray
-//! sets (camera, diffuse bounce and shadow rays) and checks that they agree ray by ray.
+//! sets (camera, diffuse bounce and shadow rays) and checks that they agree ray by ray;
+//! `bench frame` times the real-time frame pipeline along a short orbit, pass by pass.
 
 use std::time::Instant;
 
@@ -9,6 +10,7 @@ use pathlight_accel::{Accel, Hit, NativeBvh, Ray, RayKind, RaySets, SceneTriangl
 use rayon::prelude::*;
 use serde_json::json;
 
+use crate::config_args::{check, ConfigArgs};
 use crate::scene_args::SceneArgs;
 
 #[derive(Debug, Clone, Args)]
@@ -22,6 +24,36 @@ pub enum BenchCommand {
     /// Trace fixed ray sets (primary, bounce, shadow) with each backend: build time, memory,
     /// median Mrays/s, and ray-by-ray agreement between the backends.
     Rays(RaysArgs),
+    /// Render frames along a short orbit with the real-time configuration: per-pass and
+    /// per-frame times (medians) and Mrays/s.
+    Frame(FrameArgs),
+}
+
+#[derive(Debug, Clone, Args)]
+pub struct FrameArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+
+    #[command(flatten)]
+    pub settings: ConfigArgs,
+
+    /// Frames measured (after two warm-up frames).
+    #[arg(long, value_name = "N", default_value_t = 60)]
+    pub frames: u32,
+
+    /// Degrees the camera orbits over the measured frames (every frame is a new view, so
+    /// nothing accumulates).
+    #[arg(long, value_name = "DEGREES", default_value_t = 30.0)]
+    pub orbit: f32,
+
+    /// Worker threads [default: all cores].
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+
+    /// Print one JSON object as the last line (`ms_per_frame`, `fps`, `mrays_per_s`,
+    /// `passes`, ...).
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -86,6 +118,7 @@ pub struct RaysArgs {
 pub fn run(args: &BenchArgs) -> Result<()> {
     match &args.command {
         BenchCommand::Rays(a) => run_rays(a),
+        BenchCommand::Frame(a) => run_frame(a),
     }
 }
 
@@ -181,7 +214,7 @@ fn empty_results(kind: RayKind, n: usize) -> Results {
     }
 }
 
-fn median(v: &mut [f64]) -> f64 {
+pub fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {
@@ -459,6 +492,155 @@ fn table(
         let _ = writeln!(s, "native / embree: {}", ratios.join(", "));
     }
     s
+}
+
+/// Frames rendered before measuring (lazy initialisation, caches).
+const WARM_UP_FRAMES: u32 = 2;
+
+fn run_frame(args: &FrameArgs) -> Result<()> {
+    use pathlight_render::camera_path::{CameraPath, PathKind};
+    use pathlight_render::frame::Pipeline;
+    use pathlight_render::{Config, World};
+
+    if args.frames == 0 || args.frames > 100_000 {
+        bail!("--frames {}: must be between 1 and 100000", args.frames);
+    }
+    if !args.orbit.is_finite() {
+        bail!("--orbit {}: must be finite", args.orbit);
+    }
+    let config = args.settings.apply(Config::realtime())?;
+    check(&config)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("starting the worker threads")?;
+    let setup = Instant::now();
+    let path = args.scene.scene.as_deref();
+    let scene = pathlight_scene::load(path, &args.scene.load_options())?;
+    let name = scene.name.clone();
+    let world = pool.install(|| World::new(scene, config.light_selection));
+    let setup_ms = setup.elapsed().as_secs_f64() * 1e3;
+    let total = args.frames + WARM_UP_FRAMES;
+    let orbit = CameraPath {
+        path: PathKind::Orbit,
+        look_from: config.camera.look_from,
+        look_at: config.camera.look_at,
+        up: config.camera.up,
+        fov_y: config.camera.fov_y,
+        degrees: args.orbit * total as f32 / args.frames as f32,
+        steps: total - 1,
+        ..CameraPath::default()
+    };
+    let views = world.path_views(&orbit);
+    let mut reports = Vec::with_capacity(args.frames as usize);
+    let mut pipeline = Pipeline::new(config.clone());
+    pool.install(|| {
+        for (i, view) in views.iter().enumerate() {
+            let mut c = config.clone();
+            c.camera.look_from = view.look_from;
+            c.camera.look_at = view.look_at;
+            c.camera.up = view.up;
+            c.camera.fov_y = view.fov_y;
+            pipeline.set_config(&c);
+            let mut report = pipeline.render_frame(&world);
+            pipeline.display(&mut report);
+            if i >= WARM_UP_FRAMES as usize {
+                reports.push(report);
+            }
+        }
+    });
+    let summary = Summary::of(&reports, pool.current_num_threads());
+    let ms_per_frame = summary.ms_per_frame;
+    let rays: u64 = reports.iter().map(|r| r.rays).sum();
+    let threads = summary.threads;
+    let bounces = config
+        .max_bounces
+        .map_or("unlimited".to_owned(), |b| b.to_string());
+    if args.json {
+        println!(
+            "{}",
+            json!({
+                "scene": name,
+                "width": config.width,
+                "height": config.height,
+                "spp": config.spp,
+                "max_bounces": config.max_bounces,
+                "frames": args.frames,
+                "threads": threads,
+                "setup_ms": setup_ms,
+                "ms_per_frame": ms_per_frame,
+                "fps": 1e3 / ms_per_frame,
+                "mrays_per_s": summary.mrays_per_s,
+                "rays_per_frame": rays as f64 / args.frames as f64,
+                "passes": summary.passes_json(),
+            })
+        );
+    } else {
+        println!(
+            "{name}: {}x{}, {} spp per frame, {bounces} bounces, {} frames along a {}-degree orbit, {threads} threads (setup {setup_ms:.0} ms)",
+            config.width, config.height, config.spp, args.frames, args.orbit
+        );
+        println!("{:<12} {:>10}", "pass", "median ms");
+        for (n, m) in &summary.passes {
+            println!("{n:<12} {m:>10.2}");
+        }
+        println!(
+            "{:<12} {:>10.2}   ({:.1} fps, {:.1} Mrays/s, {:.2} rays per pixel)",
+            "frame",
+            ms_per_frame,
+            1e3 / ms_per_frame,
+            summary.mrays_per_s,
+            rays as f64 / args.frames as f64 / (config.width as f64 * config.height as f64)
+        );
+    }
+    Ok(())
+}
+
+/// Medians over frames.
+pub struct Summary {
+    pub ms_per_frame: f64,
+    pub mrays_per_s: f64,
+    pub threads: usize,
+    /// (pass, median ms) in pipeline order.
+    pub passes: Vec<(String, f64)>,
+}
+
+impl Summary {
+    /// The per-pass medians as a JSON object.
+    pub fn passes_json(&self) -> serde_json::Value {
+        self.passes
+            .iter()
+            .map(|(n, ms)| (n.clone(), json!(ms)))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    }
+
+    pub fn of(reports: &[pathlight_render::frame::FrameReport], threads: usize) -> Self {
+        let mut names: Vec<&str> = Vec::new();
+        for r in reports {
+            for p in &r.passes {
+                if !names.contains(&p.pass) {
+                    names.push(p.pass);
+                }
+            }
+        }
+        let passes = names
+            .iter()
+            .map(|n| {
+                let mut v: Vec<f64> = reports.iter().map(|r| r.pass_ms(n)).collect();
+                (n.to_string(), median(&mut v))
+            })
+            .collect();
+        let mut ms: Vec<f64> = reports.iter().map(|r| r.ms).collect();
+        let total_ms: f64 = reports.iter().map(|r| r.ms).sum();
+        let rays: u64 = reports.iter().map(|r| r.rays).sum();
+        Self {
+            ms_per_frame: median(&mut ms),
+            mrays_per_s: rays as f64 / (total_ms * 1e3).max(1e-9),
+            threads,
+            passes,
+        }
+    }
 }
 
 #[cfg(test)]

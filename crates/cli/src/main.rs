@@ -1,18 +1,21 @@
 //! `pathlight`: the command-line front end of the path tracer.
 //!
-//! One subcommand per job. Today `info`, `render`, `eval` and `bench` exist; `view` and `play`
-//! will slot in as further [`Command`] variants, each flattening the shared [`SceneArgs`] so that
-//! every command loads scenes the same way.
+//! One subcommand per job: `info`, `render`, `view`, `play`, `eval` and `bench`, each
+//! flattening the shared [`SceneArgs`] (so that every command loads scenes the same way) and,
+//! where it renders, [`config_args::ConfigArgs`] (one configuration type for all).
 //!
 //! Exit codes: 0 on success, 2 on any error (a usage error reported by clap, or a failed command,
 //! printed to stderr as `error: <message>`).
 
 mod bench;
+mod config_args;
 mod eval;
 mod info;
 mod memory;
+mod play;
 mod render;
 mod scene_args;
+mod view;
 
 use std::io::Write;
 use std::process::ExitCode;
@@ -44,7 +47,14 @@ pub enum Command {
     /// Run an experiment (TOML spec): error against references over samples and time, with
     /// plots and an HTML report.
     Eval(eval::EvalArgs),
-    /// Measure: `bench rays` times the ray tracing backends on fixed ray sets.
+    /// Open the interactive viewer: the real-time pipeline live, with a toggle and parameters
+    /// for every pass (the built-in Cornell box without a scene).
+    View(view::ViewArgs),
+    /// Render a scripted camera path frame by frame through the real-time pipeline (the
+    /// viewer's headless twin): frames and per-pass timings.
+    Play(play::PlayArgs),
+    /// Measure: `bench rays` times the ray tracing backends on fixed ray sets; `bench frame`
+    /// times the real-time frame pipeline.
     Bench(bench::BenchArgs),
 }
 
@@ -80,6 +90,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(args) => bench::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::Play(args) => play::run(&args),
+        Command::View(args) => view::run(&args),
     }
 }
 
@@ -139,7 +151,9 @@ mod tests {
         let Command::Bench(b) = cli.command else {
             panic!("not bench")
         };
-        let bench::BenchCommand::Rays(r) = b.command;
+        let bench::BenchCommand::Rays(r) = b.command else {
+            panic!("not bench rays")
+        };
         assert_eq!(r.backend, bench::BackendChoice::Native);
         assert_eq!(
             (r.threads, r.width, r.height, r.repeat),

@@ -8,13 +8,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use pathlight_render::bsdf::Microfacet;
 use pathlight_render::checkpoint::{self, Header};
 use pathlight_render::output::write_film;
 use pathlight_render::renderer::{pass_targets, render_pass};
-use pathlight_render::sampler::SamplerKind;
 use pathlight_render::{Config, Film, World};
 
+use crate::config_args::{check, ConfigArgs};
 use crate::memory::peak_rss_bytes;
 use crate::SceneArgs;
 
@@ -26,76 +25,21 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
 
-    /// Samples per pixel.
-    #[arg(long, value_name = "N", default_value_t = 64)]
-    pub spp: u32,
-
-    /// Image width in pixels [default: 512].
-    #[arg(long, value_name = "W")]
-    pub width: Option<u32>,
-
-    /// Image height in pixels [default: from the width and the camera's aspect ratio, square
-    /// when the camera has none].
-    #[arg(long, value_name = "H")]
-    pub height: Option<u32>,
+    #[command(flatten)]
+    pub settings: ConfigArgs,
 
     /// Output image: .png (tone-mapped sRGB) or .exr (linear HDR RGB).
     #[arg(long, value_name = "FILE", default_value = "render.png")]
     pub out: PathBuf,
 
-    /// Seed of every random decision.
-    #[arg(long, value_name = "S", default_value_t = 0)]
-    pub seed: u64,
-
     /// Worker threads [default: all cores].
     #[arg(long, value_name = "T")]
     pub threads: Option<usize>,
-
-    /// Maximum scattering events per path [default: unlimited, Russian roulette ends paths].
-    #[arg(long, value_name = "B")]
-    pub max_bounces: Option<u32>,
-
-    /// Camera position (overrides the scene's camera).
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_from: Option<[f32; 3]>,
-
-    /// Point the camera looks at.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_at: Option<[f32; 3]>,
-
-    /// Camera up direction.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub up: Option<[f32; 3]>,
-
-    /// Vertical field of view.
-    #[arg(long, value_name = "DEGREES")]
-    pub fov_y: Option<f32>,
-
-    /// Thin-lens radius in scene units (depth of field); 0 is a pinhole.
-    #[arg(long, value_name = "R", default_value_t = 0.0)]
-    pub lens_radius: f32,
-
-    /// Distance in focus [default: what the image centre sees].
-    #[arg(long, value_name = "D")]
-    pub focus_distance: Option<f32>,
-
-    /// Microfacet distribution of glossy lobes.
-    #[arg(long, value_enum, default_value = "ggx")]
-    pub microfacet: MicrofacetArg,
-
-    /// Sample values: Owen-scrambled Sobol points, or independent random numbers (plain Monte
-    /// Carlo).
-    #[arg(long, value_enum, default_value = "sobol")]
-    pub sampler: SamplerArg,
 
     /// With an .exr output: also write albedo, normal, depth, direct, indirect, variance and
     /// spp layers.
     #[arg(long)]
     pub aovs: bool,
-
-    /// Exposure multiplier for .png output.
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
-    pub exposure: f32,
 
     /// Checkpoint file [default: OUT with `.checkpoint` appended].
     #[arg(long, value_name = "FILE")]
@@ -118,71 +62,23 @@ pub struct RenderArgs {
     pub json: bool,
 }
 
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum MicrofacetArg {
-    Ggx,
-    Beckmann,
-}
-
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum SamplerArg {
-    Sobol,
-    Independent,
-}
-
-fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != 3 {
-        return Err(format!("expected X,Y,Z, got {s:?}"));
-    }
-    let mut out = [0.0; 3];
-    for (o, p) in out.iter_mut().zip(&parts) {
-        *o = p
-            .parse::<f32>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("{p:?} is not a finite number"))?;
-    }
-    Ok(out)
-}
-
 impl RenderArgs {
-    /// The render configuration for a scene whose camera has aspect ratio `aspect`.
+    /// The render configuration for a scene whose camera has aspect ratio `aspect`: 512
+    /// pixels wide, the height from the aspect ratio (square without one), 64 samples per
+    /// pixel, unlimited bounces, unless the options say otherwise.
     fn config(&self, aspect: Option<f32>) -> Result<Config> {
-        let width = self.width.unwrap_or(512);
-        let height = self.height.unwrap_or_else(|| {
-            let a = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
-            ((width as f32 / a).round() as u32).max(1)
-        });
-        if !(self.exposure.is_finite() && self.exposure >= 0.0) {
-            bail!("--exposure {}: must be finite and >= 0", self.exposure);
-        }
-        let mut config = Config {
-            width,
-            height,
-            spp: self.spp,
-            seed: self.seed,
-            max_bounces: self.max_bounces,
-            microfacet: match self.microfacet {
-                MicrofacetArg::Ggx => Microfacet::Ggx,
-                MicrofacetArg::Beckmann => Microfacet::Beckmann,
-            },
-            sampler: match self.sampler {
-                SamplerArg::Sobol => SamplerKind::Sobol,
-                SamplerArg::Independent => SamplerKind::Independent,
-            },
+        let base = Config {
+            width: 512,
+            height: 0,
+            spp: 64,
             ..Config::default()
         };
-        let cam = &mut config.camera;
-        cam.look_from = self.look_from;
-        cam.look_at = self.look_at;
-        cam.up = self.up;
-        cam.fov_y = self.fov_y;
-        cam.lens_radius = self.lens_radius;
-        cam.focus_distance = self.focus_distance;
-        if let Err(e) = config.validate() {
-            bail!("{} {}: must be {}", e.option(), e.value, e.requirement);
+        let mut config = self.settings.apply(base)?;
+        if config.height == 0 {
+            let a = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
+            config.height = ((config.width as f32 / a).round() as u32).max(1);
         }
+        check(&config)?;
         Ok(config)
     }
 
@@ -304,7 +200,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let render_s = render_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    write_film(&args.out, &film, args.aovs, args.exposure)?;
+    write_film(&args.out, &film, args.aovs, &config.display)?;
     if !complete {
         checkpoint::save(&checkpoint_path, &header, &film)?;
         bail!(

@@ -35,10 +35,43 @@ pub fn srgb8_to_linear(c: u8) -> f32 {
     srgb8_to_linear_table()[c as usize]
 }
 
-/// Encodes a linear value as an 8-bit sRGB code value (rounded to nearest).
+/// Encodes a linear value as an 8-bit sRGB code value (rounded to nearest), by the formula.
+#[inline]
+fn linear_to_srgb8_formula(c: f32) -> u8 {
+    (linear_to_srgb(c) * 255.0 + 0.5) as u8
+}
+
+/// For each code value `i` in 1..=255, the smallest linear value that encodes to `i` or more.
+fn srgb8_thresholds() -> &'static [f32; 255] {
+    static TABLE: std::sync::OnceLock<[f32; 255]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|k| {
+            let code = k as u8 + 1;
+            // Bisection over the bit patterns of [0, 1] (ordered like the values).
+            let (mut lo, mut hi) = (0u32, 1f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if linear_to_srgb8_formula(f32::from_bits(mid)) >= code {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            f32::from_bits(lo)
+        })
+    })
+}
+
+/// Encodes a linear value as an 8-bit sRGB code value (rounded to nearest; clamped to [0, 1],
+/// NaN as 0). A binary search over the 255 code thresholds: the same result as evaluating the
+/// transfer function, without a `powf` per value.
 #[inline]
 pub fn linear_to_srgb8(c: f32) -> u8 {
-    (linear_to_srgb(c) * 255.0 + 0.5) as u8
+    // Zero, negative and NaN all encode as 0.
+    if c.is_nan() || c <= 0.0 {
+        return 0;
+    }
+    srgb8_thresholds().partition_point(|&t| t <= c) as u8
 }
 
 /// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).
@@ -67,6 +100,27 @@ mod tests {
         assert_eq!(srgb8_to_linear(255), 1.0);
         // The linear segment.
         assert!((srgb_to_linear(0.04) - 0.04 / 12.92).abs() < 1e-9);
+    }
+
+    #[test]
+    fn encoding_by_table_equals_the_formula() {
+        // Every code threshold and its neighbours, plus a dense sweep and the edges.
+        for &t in srgb8_thresholds() {
+            for v in [
+                t,
+                f32::from_bits(t.to_bits() - 1),
+                f32::from_bits(t.to_bits() + 1),
+            ] {
+                assert_eq!(linear_to_srgb8(v), linear_to_srgb8_formula(v), "{v}");
+            }
+        }
+        for i in 0..=1_000_000u32 {
+            let v = i as f32 / 900_000.0;
+            assert_eq!(linear_to_srgb8(v), linear_to_srgb8_formula(v), "{v}");
+        }
+        for v in [-1.0, -0.0, 0.0, 1e-30, 1.0, 2.0, f32::INFINITY, f32::NAN] {
+            assert_eq!(linear_to_srgb8(v), linear_to_srgb8_formula(v), "{v}");
+        }
     }
 
     #[test]

@@ -1,31 +1,30 @@
 //! Runs an experiment: loads the scene, renders (or finds in the cache) the reference of every
-//! measured view, then renders each configuration, repetition and view within the budgets and
-//! measures every image against its reference.
+//! measured view, then runs each configuration and repetition through the real-time frame
+//! pipeline along the camera path, and measures every image against its reference.
 //!
-//! Today each configuration is the reference path tracer with its settings, accumulating
-//! samples progressively; render time excludes metric computation. Views before a measured one
-//! (seed 000's camera steps) are rendered with `samples_per_step` samples per pixel.
+//! Views before a measured one are rendered for `frames_per_view` frames each (seed 000's
+//! samples per step, at one sample per frame). At a measured view the pipeline renders frames
+//! until every budget has passed (equal samples: samples traced at the view; equal time:
+//! render time at the view, metric computation excluded) and the accumulated image is measured
+//! at each. A still camera with accumulation is the progressive reference render: its error
+//! falls as 1/frames.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use pathlight_core::rng::hash;
 use pathlight_render::config::MAX_SPP;
+use pathlight_render::frame::{FrameReport, Pipeline};
 use pathlight_render::light::LightSelection;
-use pathlight_render::renderer::render_pass;
-use pathlight_render::{Config, Film, World};
+use pathlight_render::{Config, World};
 
 use crate::image::Image;
 use crate::metrics;
-use crate::reference::{film_image, ReferenceCache, SceneIdentity, RENDERER_VERSION};
+use crate::reference::{ReferenceCache, SceneIdentity, RENDERER_VERSION};
 use crate::results::{slopes, BudgetPoint, Measurement, Results, ViewReference};
 use crate::spec::Spec;
 use crate::EvalError;
-
-/// The name of the one stage of the path tracer's timings.
-pub const PATH_TRACING: &str = "path tracing";
 
 /// Where a run is: `done` of `total` units (samples or milliseconds) of `task`.
 pub struct Progress<'a> {
@@ -105,7 +104,7 @@ impl Runner<'_> {
         let mut worlds = Worlds {
             worlds: vec![(first, World::new(scene, first))],
         };
-        let views = spec.views(&worlds.get(first).scene_camera());
+        let views = worlds.get(first).path_views(&spec.camera);
         let measured = spec.measured_views(views.len());
         let mut results = Results {
             spec: spec.clone(),
@@ -160,7 +159,20 @@ impl Runner<'_> {
                 } else {
                     hash(&[c.config.seed, rep as u64])
                 };
+                let config_at = |view| Config {
+                    seed,
+                    ..spec.configuration_config(&c.config, view)
+                };
+                let mut pipeline = Pipeline::new(config_at(&views[0]));
                 for (v, view) in views.iter().enumerate() {
+                    pipeline.set_config(&config_at(view));
+                    let Some(reference) = references.iter().find(|r| r.0 == v).map(|r| &r.1) else {
+                        // A step before the measured view.
+                        for _ in 0..spec.camera.frames_per_view {
+                            pipeline.render_frame(world);
+                        }
+                        continue;
+                    };
                     let task = format!(
                         "{}, run {}/{}, view {}/{}",
                         c.name,
@@ -169,37 +181,17 @@ impl Runner<'_> {
                         v + 1,
                         views.len()
                     );
-                    let mut config = spec.configuration_config(&c.config, view, 1);
-                    config.seed = seed;
-                    let Some(reference) = references.iter().find(|r| r.0 == v).map(|r| &r.1) else {
-                        // A step before the measured view.
-                        if spec.camera.samples_per_step > 0 {
-                            config.spp = spec.camera.samples_per_step;
-                            let mut film = Film::new(config.width, config.height);
-                            let camera = world.camera(&config);
-                            render_pass(
-                                world,
-                                &camera,
-                                &config,
-                                &mut film,
-                                config.spp,
-                                self.cancel,
-                                &|_| {},
-                            );
-                        }
-                        continue;
-                    };
                     let run = ViewRun {
                         runner: self,
                         world,
-                        config: &config,
                         reference,
                         task: &task,
                         name: &c.name,
                         rep,
+                        seed,
                         view: v,
                     };
-                    let snapshot = run.measure(&mut results.measurements)?;
+                    let snapshot = run.measure(&mut pipeline, &mut results.measurements)?;
                     if self.cancel.load(Ordering::Relaxed) {
                         results.slopes = slopes(spec, &results.measurements);
                         return Ok(Outcome {
@@ -228,99 +220,75 @@ impl Runner<'_> {
 struct ViewRun<'a> {
     runner: &'a Runner<'a>,
     world: &'a World,
-    config: &'a Config,
     reference: &'a Image,
     task: &'a str,
     name: &'a str,
     rep: u32,
+    seed: u64,
     view: usize,
 }
 
 impl ViewRun<'_> {
-    /// Renders within the equal-samples budgets, then (afresh) within the equal-time budgets,
-    /// pushing a measurement at every budget point. Returns the image at the last budget point
-    /// with its label.
-    fn measure(&self, out: &mut Vec<Measurement>) -> Result<Option<(String, Image)>, EvalError> {
-        let spec = self.runner.spec;
-        let camera = self.world.camera(self.config);
-        let (w, h) = (self.config.width, self.config.height);
-        let pixels = w as u64 * h as u64;
+    /// Renders frames at the view until every budget point has passed, pushing a measurement
+    /// at each. Returns the image at the last budget point with its label, or none when
+    /// cancelled.
+    fn measure(
+        &self,
+        pipeline: &mut Pipeline,
+        out: &mut Vec<Measurement>,
+    ) -> Result<Option<(String, Image)>, EvalError> {
+        let budget = &self.runner.spec.budget;
         let cancel = self.runner.cancel;
+        let (w, h) = (pipeline.config().width, pipeline.config().height);
+        let spp_per_frame = pipeline.config().spp.max(1);
+        let max_spp = budget.spp.last().copied().unwrap_or(0);
+        let max_ms = budget.time_ms.last().copied().unwrap_or(0.0);
+        let (mut next_spp, mut next_ms) = (0, 0);
+        let mut spp = 0u32;
+        let mut stages: BTreeMap<String, f64> = BTreeMap::new();
         let mut last = None;
-
-        // Equal samples: one progressive render, measured as it passes each budget.
-        if let Some(&max_spp) = spec.budget.spp.last() {
-            let mut film = Film::new(w, h);
-            let done = AtomicU64::new(0);
-            let total = pixels * max_spp as u64;
-            let mut ms = 0.0;
-            for &target in &spec.budget.spp {
-                let start = Instant::now();
-                let finished = render_pass(
-                    self.world,
-                    &camera,
-                    self.config,
-                    &mut film,
-                    target,
-                    cancel,
-                    &|n| {
-                        let d = done.fetch_add(n, Ordering::Relaxed) + n;
-                        (self.runner.progress)(&Progress {
-                            task: self.task,
-                            done: d,
-                            total,
-                        });
-                    },
-                );
-                ms += start.elapsed().as_secs_f64() * 1e3;
-                if !finished {
-                    return Ok(None);
-                }
-                let image = film_image(&film);
-                out.push(self.measurement(BudgetPoint::Spp(target), target as f64, ms, &image)?);
-                last = Some((format!("{target} spp, {ms:.0} ms"), image));
+        while (next_spp < budget.spp.len() || next_ms < budget.time_ms.len()) && spp < MAX_SPP {
+            if cancel.load(Ordering::Relaxed) {
+                return Ok(None);
             }
-        }
-
-        // Equal time: passes of one sample per pixel until each time budget has passed.
-        if !spec.budget.time_ms.is_empty() {
-            let budgets = &spec.budget.time_ms;
-            let total = budgets.last().copied().unwrap_or(0.0).ceil() as u64;
-            let mut film = Film::new(w, h);
-            let mut ms = 0.0;
-            let mut next = 0;
-            let mut spp = 0;
-            while next < budgets.len() && spp < MAX_SPP {
-                spp += 1;
-                let start = Instant::now();
-                if !render_pass(
-                    self.world,
-                    &camera,
-                    self.config,
-                    &mut film,
-                    spp,
-                    cancel,
-                    &|_| {},
-                ) {
-                    return Ok(None);
-                }
-                ms += start.elapsed().as_secs_f64() * 1e3;
-                (self.runner.progress)(&Progress {
-                    task: self.task,
-                    done: (ms as u64).min(total),
-                    total,
-                });
-                while next < budgets.len() && ms >= budgets[next] {
-                    let image = film_image(&film);
-                    out.push(self.measurement(
-                        BudgetPoint::TimeMs(budgets[next]),
-                        spp as f64,
-                        ms,
-                        &image,
-                    )?);
-                    last = Some((format!("{:.0} ms budget, {spp} spp", budgets[next]), image));
-                    next += 1;
-                }
+            let report: FrameReport = pipeline.render_frame(self.world);
+            spp += spp_per_frame;
+            for p in &report.passes {
+                *stages.entry(p.pass.to_owned()).or_default() += p.ms;
+            }
+            // Render time at the view: the sum of the stages (so that they add up exactly).
+            let ms: f64 = stages.values().sum();
+            let done = f64::max(
+                spp as f64 / max_spp.max(1) as f64,
+                if max_ms > 0.0 { ms / max_ms } else { 0.0 },
+            );
+            (self.runner.progress)(&Progress {
+                task: self.task,
+                done: ((done.min(1.0)) * 1000.0) as u64,
+                total: 1000,
+            });
+            let mut points = Vec::new();
+            while next_spp < budget.spp.len() && spp >= budget.spp[next_spp] {
+                points.push(BudgetPoint::Spp(budget.spp[next_spp]));
+                next_spp += 1;
+            }
+            while next_ms < budget.time_ms.len() && ms >= budget.time_ms[next_ms] {
+                points.push(BudgetPoint::TimeMs(budget.time_ms[next_ms]));
+                next_ms += 1;
+            }
+            if points.is_empty() {
+                continue;
+            }
+            let image = Image::new(w, h, pipeline.image());
+            let mean_spp = pipeline.history.iter().map(|p| p.n as f64).sum::<f64>()
+                / pipeline.history.len().max(1) as f64;
+            for point in points {
+                out.push(self.measurement(point, mean_spp, ms, &stages, &image)?);
+                let label = match point {
+                    BudgetPoint::Spp(n) => format!("{n} spp, {ms:.0} ms"),
+                    BudgetPoint::TimeMs(t) => format!("{t:.0} ms budget, {mean_spp:.0} spp"),
+                };
+                last = Some((label, image.clone()));
             }
         }
         Ok(last)
@@ -331,6 +299,7 @@ impl ViewRun<'_> {
         budget: BudgetPoint,
         spp: f64,
         ms: f64,
+        stages: &BTreeMap<String, f64>,
         image: &Image,
     ) -> Result<Measurement, EvalError> {
         let mut values = BTreeMap::new();
@@ -340,12 +309,12 @@ impl ViewRun<'_> {
         Ok(Measurement {
             configuration: self.name.to_owned(),
             repetition: self.rep,
-            seed: self.config.seed,
+            seed: self.seed,
             view: self.view,
             budget,
             spp,
             ms,
-            stages: [(PATH_TRACING.to_owned(), ms)].into_iter().collect(),
+            stages: stages.clone(),
             metrics: values,
         })
     }

@@ -442,7 +442,11 @@ fn images(
     for (k, ((name, label, image), map)) in snaps.images.iter().zip(&maps).enumerate() {
         let slug = slug(k, name);
         let file = format!("images/{slug}.png");
-        write(out, &file, &encode_png(w, h, &image.pixels, 1.0))?;
+        write(
+            out,
+            &file,
+            &encode_png(w, h, &image.pixels, &Default::default()),
+        )?;
         full.push(picture(&file, &format!("{name}: {label}"), shown));
         let file = format!("images/{slug}-error.png");
         let png = plot::error_map_png(map, w, h, Some(max), &error_label(primary))?;

@@ -193,7 +193,7 @@ impl ReferenceCache {
             }
         }
         let render_seconds = start.elapsed().as_secs_f64();
-        write_film(&exr, &film, false, 1.0)?;
+        write_film(&exr, &film, false, &Default::default())?;
         let image = film_image(&film);
         let info = ReferenceInfo {
             key,

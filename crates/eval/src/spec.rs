@@ -4,9 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{Quat, Vec3};
+use glam::Vec3;
+use pathlight_render::camera_path::CameraPath;
 use pathlight_render::config::{CameraConfig, Config, MAX_SPP};
-use pathlight_scene::{Camera as SceneCamera, LoadOptions, Projection};
+use pathlight_scene::{Camera as SceneCamera, LoadOptions};
 use serde::{Deserialize, Serialize};
 
 use crate::metrics::Metric;
@@ -16,7 +17,6 @@ const MAX_SPEC_BYTES: u64 = 1 << 20;
 /// Bounds on counts, so that a typo cannot ask for years of rendering by accident.
 const MAX_CONFIGURATIONS: usize = 64;
 const MAX_REPETITIONS: u32 = 1000;
-const MAX_STEPS: u32 = 10_000;
 const MAX_BUDGETS: usize = 64;
 const MAX_TIME_MS: f64 = 3_600_000.0;
 
@@ -48,8 +48,13 @@ pub struct Spec {
     /// Runs of each configuration with different seeds; plots show their mean.
     #[serde(default = "one_u32")]
     pub repetitions: u32,
+    /// How the camera moves (`pathlight_render::camera_path`); the views before a measured
+    /// one are rendered for `frames_per_view` frames each.
     #[serde(default)]
     pub camera: CameraPath,
+    /// Which views along the path are measured.
+    #[serde(default = "final_view")]
+    pub measure: Measure,
     pub budget: Budget,
     #[serde(default)]
     pub reference: ReferenceSpec,
@@ -67,53 +72,8 @@ fn default_metrics() -> Vec<Metric> {
     vec![Metric::Mse, Metric::Relmse]
 }
 
-/// How the camera moves before (or while) error is measured.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct CameraPath {
-    pub path: PathKind,
-    /// The first view (overrides of the scene camera, as in a configuration's `camera`).
-    pub look_from: Option<[f32; 3]>,
-    pub look_at: Option<[f32; 3]>,
-    pub up: Option<[f32; 3]>,
-    pub fov_y: Option<f32>,
-    /// Rotation: total angle about the vertical axis through the camera (counter-clockwise
-    /// seen from above), in steps of `step_degrees` (seed 000: 100 degrees in 5 degree steps).
-    pub degrees: f32,
-    pub step_degrees: f32,
-    /// Translation: total offset of the camera, in `steps` equal steps.
-    pub offset: [f32; 3],
-    pub steps: u32,
-    /// Samples per pixel rendered at each view before the measured one (seed 000: 32 or 64).
-    pub samples_per_step: u32,
-    /// Which views are measured against their references.
-    pub measure: Measure,
-}
-
-impl Default for CameraPath {
-    fn default() -> Self {
-        Self {
-            path: PathKind::Still,
-            look_from: None,
-            look_at: None,
-            up: None,
-            fov_y: None,
-            degrees: 100.0,
-            step_degrees: 5.0,
-            offset: [0.0; 3],
-            steps: 10,
-            samples_per_step: 32,
-            measure: Measure::Final,
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum PathKind {
-    Still,
-    Rotation,
-    Translation,
+fn final_view() -> Measure {
+    Measure::Final
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -125,14 +85,17 @@ pub enum Measure {
     Every,
 }
 
-/// When images are measured.
+/// When images are measured: one progressive run of frames at the measured view, measured as
+/// it passes each point of either list.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Budget {
-    /// Equal samples: measure when every pixel has this many samples (ascending).
+    /// Equal samples: measure once this many samples per pixel have been traced at the view
+    /// (ascending).
     #[serde(default)]
     pub spp: Vec<u32>,
-    /// Equal time: measure after this much render time, in milliseconds (ascending).
+    /// Equal time: measure once this much render time has passed at the view, in
+    /// milliseconds (ascending).
     #[serde(default)]
     pub time_ms: Vec<f64>,
 }
@@ -170,8 +133,8 @@ impl Default for ReferenceSpec {
 #[serde(deny_unknown_fields)]
 pub struct Configuration {
     pub name: String,
-    /// Settings; width, height and spp come from the spec and its budgets, the view from the
-    /// camera path.
+    /// Settings of the frame pipeline (`spp` is samples per frame); width and height come
+    /// from the spec, the view from the camera path.
     #[serde(default)]
     pub config: Config,
 }
@@ -273,20 +236,13 @@ impl Spec {
         {
             return Err("environment_rotation and environment_intensity: must be finite, the intensity >= 0".into());
         }
-        self.camera.validate()?;
-        for view in self.views(&SceneCamera::look_at(
-            "check",
-            Vec3::ZERO,
-            Vec3::NEG_Z,
-            Vec3::Y,
-            45.0,
-        )) {
-            for c in &self.configurations {
-                let config = self.configuration_config(&c.config, &view, 1);
-                config
-                    .validate()
-                    .map_err(|e| format!("configuration {:?}: {e}", c.name))?;
-            }
+        self.camera.validate().map_err(|e| format!("camera: {e}"))?;
+        let check = SceneCamera::look_at("check", Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 45.0);
+        let first = &self.views(&check, Vec3::NEG_Z)[0];
+        for c in &self.configurations {
+            self.configuration_config(&c.config, first)
+                .validate()
+                .map_err(|e| format!("configuration {:?}: {e}", c.name))?;
         }
         if self.reference.spp == 0 || self.reference.spp > MAX_SPP {
             return Err(format!(
@@ -297,12 +253,11 @@ impl Spec {
         Ok(())
     }
 
-    /// `config` with the spec's resolution, `spp` and the view's camera.
-    pub fn configuration_config(&self, config: &Config, view: &CameraConfig, spp: u32) -> Config {
+    /// `config` with the spec's resolution and the view's camera.
+    pub fn configuration_config(&self, config: &Config, view: &CameraConfig) -> Config {
         let mut c = config.clone();
         c.width = self.width;
         c.height = self.height;
-        c.spp = spp;
         c.camera = CameraConfig {
             lens_radius: c.camera.lens_radius,
             focus_distance: c.camera.focus_distance,
@@ -313,7 +268,10 @@ impl Spec {
 
     /// The reference's settings for `view`.
     pub fn reference_config(&self, view: &CameraConfig) -> Config {
-        self.configuration_config(&self.reference.config, view, self.reference.spp)
+        Config {
+            spp: self.reference.spp,
+            ..self.configuration_config(&self.reference.config, view)
+        }
     }
 
     /// The scene loader's options (paths relative to `spec_dir`).
@@ -333,106 +291,16 @@ impl Spec {
     }
 
     /// The camera of every view along the path, starting from `scene_camera` with the path's
-    /// overrides.
-    pub fn views(&self, scene_camera: &SceneCamera) -> Vec<CameraConfig> {
-        self.camera.views(scene_camera)
+    /// overrides (`scene_centre` places an orbit's default pivot).
+    pub fn views(&self, scene_camera: &SceneCamera, scene_centre: Vec3) -> Vec<CameraConfig> {
+        self.camera.views(scene_camera, scene_centre)
     }
 
     /// Indices of the measured views among [`views`](Self::views).
     pub fn measured_views(&self, count: usize) -> Vec<usize> {
-        match self.camera.measure {
+        match self.measure {
             Measure::Final => vec![count - 1],
             Measure::Every => (0..count).collect(),
-        }
-    }
-}
-
-impl CameraPath {
-    fn validate(&self) -> Result<(), String> {
-        let finite = |v: [f32; 3]| v.iter().all(|c| c.is_finite());
-        if [self.look_from, self.look_at, self.up]
-            .iter()
-            .flatten()
-            .any(|v| !finite(*v))
-            || !finite(self.offset)
-        {
-            return Err("camera: vectors must be finite".into());
-        }
-        if let Some(f) = self.fov_y {
-            if !(f > 0.0 && f < 180.0) {
-                return Err(format!("camera.fov_y {f}: must be between 0 and 180"));
-            }
-        }
-        if self.samples_per_step > MAX_SPP {
-            return Err(format!(
-                "camera.samples_per_step {}: at most {MAX_SPP}",
-                self.samples_per_step
-            ));
-        }
-        let steps = match self.path {
-            PathKind::Still => 0.0,
-            PathKind::Rotation => {
-                if !(self.degrees.is_finite() && self.step_degrees.is_finite())
-                    || self.step_degrees <= 0.0
-                {
-                    return Err(format!(
-                        "camera: degrees {} and step_degrees {}: must be finite, the step > 0",
-                        self.degrees, self.step_degrees
-                    ));
-                }
-                (self.degrees.abs() / self.step_degrees).ceil()
-            }
-            PathKind::Translation => self.steps as f32,
-        };
-        if steps > MAX_STEPS as f32 {
-            return Err(format!("camera: {steps} steps, at most {MAX_STEPS}"));
-        }
-        Ok(())
-    }
-
-    /// The views: the first, then one per step.
-    pub fn views(&self, scene_camera: &SceneCamera) -> Vec<CameraConfig> {
-        let base = CameraConfig {
-            look_from: self.look_from,
-            look_at: self.look_at,
-            up: self.up,
-            fov_y: self.fov_y,
-            ..CameraConfig::default()
-        }
-        .apply(scene_camera);
-        let from = base.position();
-        let forward = base.forward();
-        let up = base.transform.y_axis.truncate().normalize();
-        let fov = match base.projection {
-            Projection::Perspective { yfov, .. } => yfov.to_degrees(),
-            Projection::Orthographic { .. } => 45.0,
-        };
-        let view = |from: Vec3, forward: Vec3, up: Vec3| CameraConfig {
-            look_from: Some(from.to_array()),
-            look_at: Some((from + forward).to_array()),
-            up: Some(up.to_array()),
-            fov_y: Some(fov),
-            ..CameraConfig::default()
-        };
-        match self.path {
-            PathKind::Still => vec![view(from, forward, up)],
-            PathKind::Rotation => {
-                let steps = (self.degrees.abs() / self.step_degrees).ceil() as u32;
-                (0..=steps)
-                    .map(|i| {
-                        let angle = (i as f32 * self.step_degrees).min(self.degrees.abs())
-                            * self.degrees.signum();
-                        let q = Quat::from_rotation_y(angle.to_radians());
-                        view(from, q * forward, q * up)
-                    })
-                    .collect()
-            }
-            PathKind::Translation => (0..=self.steps)
-                .map(|i| {
-                    let t = i as f32 / self.steps.max(1) as f32;
-                    view(from + Vec3::from(self.offset) * t, forward, up)
-                })
-                .collect(),
         }
     }
 }
@@ -456,11 +324,14 @@ mod tests {
         let s = Spec::parse(MINIMAL).unwrap();
         assert_eq!(s.metrics, vec![Metric::Mse, Metric::Relmse]);
         assert_eq!(s.repetitions, 1);
-        assert_eq!(s.camera.path, PathKind::Still);
+        assert_eq!(
+            s.camera.path,
+            pathlight_render::camera_path::PathKind::Still
+        );
         assert_eq!(s.reference.spp, 2048);
         assert_eq!(s.configurations[0].config, Config::default());
         let cam = SceneCamera::look_at("c", Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 40.0);
-        assert_eq!(s.views(&cam).len(), 1);
+        assert_eq!(s.views(&cam, Vec3::ZERO).len(), 1);
         assert_eq!(s.measured_views(1), vec![0]);
     }
 
@@ -493,7 +364,7 @@ mod tests {
             (format!("repetitions = 0\n{MINIMAL}"), "repetitions 0"),
             (format!("metrics = [\"psnr\", \"nope\"]\n{MINIMAL}"), "nope"),
             (format!("{MINIMAL}\n[camera]\npath = \"rotation\"\nstep_degrees = 0\n"), "step"),
-            (format!("{MINIMAL}\n[camera]\npath = \"rotation\"\ndegrees = 1e9\nstep_degrees = 1e-3\n"), "steps"),
+            (format!("{MINIMAL}\n[camera]\npath = \"rotation\"\ndegrees = 1e9\nstep_degrees = 1e-3\n"), "views"),
             (format!("{MINIMAL}\n[camera]\nfov_y = 500\n"), "fov_y"),
             (format!("{MINIMAL}\n[reference]\nspp = 0\n"), "reference.spp"),
             (format!("{MINIMAL}\n[configuration.config]\nspp = \"many\"\n"), "spp"),
@@ -510,47 +381,16 @@ mod tests {
     }
 
     #[test]
-    fn rotation_views_turn_about_the_camera() {
-        let mut s = Spec::parse(MINIMAL).unwrap();
-        s.camera.path = PathKind::Rotation;
-        s.camera.degrees = 100.0;
-        s.camera.step_degrees = 30.0;
-        let cam = SceneCamera::look_at(
-            "c",
-            Vec3::new(1.0, 2.0, 3.0),
-            Vec3::new(1.0, 2.0, 2.0),
-            Vec3::Y,
-            40.0,
-        );
-        let views = s.views(&cam);
-        // 0, 30, 60, 90, 100 degrees.
-        assert_eq!(views.len(), 5);
-        for v in &views {
-            assert_eq!(v.look_from, Some([1.0, 2.0, 3.0]));
-        }
-        let dir =
-            |v: &CameraConfig| Vec3::from(v.look_at.unwrap()) - Vec3::from(v.look_from.unwrap());
-        assert!(dir(&views[0]).abs_diff_eq(Vec3::NEG_Z, 1e-5));
-        // Counter-clockwise seen from above: -Z turns towards -X.
-        let d = 100f32.to_radians();
-        assert!(dir(&views[4]).abs_diff_eq(Vec3::new(-d.sin(), 0.0, -d.cos()), 1e-5));
-        assert_eq!(s.measured_views(views.len()), vec![4]);
-    }
-
-    #[test]
-    fn translation_views_move_in_equal_steps() {
-        let mut s = Spec::parse(MINIMAL).unwrap();
-        s.camera.path = PathKind::Translation;
-        s.camera.offset = [2.0, 0.0, 0.0];
-        s.camera.steps = 4;
-        s.camera.measure = Measure::Every;
+    fn camera_paths_are_read_and_measured_views_chosen() {
+        let s = Spec::parse(&format!(
+            "measure = \"every\"\n{MINIMAL}\n[camera]\npath = \"rotation\"\ndegrees = 20\nstep_degrees = 10\nframes_per_view = 4\n"
+        ))
+        .unwrap();
         let cam = SceneCamera::look_at("c", Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 40.0);
-        let xs: Vec<f32> = s
-            .views(&cam)
-            .iter()
-            .map(|v| v.look_from.unwrap()[0])
-            .collect();
-        assert_eq!(xs, vec![0.0, 0.5, 1.0, 1.5, 2.0]);
-        assert_eq!(s.measured_views(5), vec![0, 1, 2, 3, 4]);
+        assert_eq!(s.views(&cam, Vec3::ZERO).len(), 3);
+        assert_eq!(s.camera.frames_per_view, 4);
+        assert_eq!(s.measured_views(3), vec![0, 1, 2]);
+        let s = Spec::parse(MINIMAL).unwrap();
+        assert_eq!(s.measured_views(3), vec![2]);
     }
 }

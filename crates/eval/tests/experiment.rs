@@ -162,10 +162,10 @@ fn rotation_measured_at_every_view_has_one_reference_per_view() {
     spec.configurations.truncate(1);
     spec.budget.spp = vec![2];
     spec.reference.spp = 4;
-    spec.camera.path = pathlight_eval::spec::PathKind::Rotation;
+    spec.camera.path = pathlight_render::camera_path::PathKind::Rotation;
     spec.camera.degrees = 20.0;
     spec.camera.step_degrees = 10.0;
-    spec.camera.measure = pathlight_eval::spec::Measure::Every;
+    spec.measure = pathlight_eval::spec::Measure::Every;
     let cache = temp_dir("rotation");
     let out = run(&spec, &cache, None).results;
     assert_eq!(out.views.len(), 3);
@@ -175,9 +175,9 @@ fn rotation_measured_at_every_view_has_one_reference_per_view() {
     let views: Vec<usize> = out.measurements.iter().map(|m| m.view).collect();
     assert_eq!(views, vec![0, 1, 2]);
 
-    // Measured only at the final view, after steps of samples_per_step.
-    spec.camera.measure = pathlight_eval::spec::Measure::Final;
-    spec.camera.samples_per_step = 2;
+    // Measured only at the final view, after steps of frames_per_view frames.
+    spec.measure = pathlight_eval::spec::Measure::Final;
+    spec.camera.frames_per_view = 2;
     let out = run(&spec, &cache, None).results;
     assert_eq!(out.references.len(), 1);
     assert!(

@@ -29,6 +29,8 @@ pub struct CameraRay {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Camera {
     to_world: Mat4,
+    /// The inverse of `to_world` (world to camera space, for projections).
+    to_camera: Mat4,
     kind: Kind,
     width: f32,
     height: f32,
@@ -51,6 +53,7 @@ impl Camera {
         };
         Self {
             to_world: camera.transform,
+            to_camera: camera.transform.inverse(),
             kind,
             width: width.max(1) as f32,
             height: height.max(1) as f32,
@@ -108,6 +111,17 @@ impl Camera {
         (origin, dir.normalize())
     }
 
+    /// The world-space ray through film position `film` (pixels) with lens sample `lens`,
+    /// without differentials.
+    #[inline]
+    pub fn primary_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        let (o, d) = self.local_ray(film, lens);
+        Ray::new(
+            self.to_world.transform_point3(o),
+            self.to_world.transform_vector3(d).normalize(),
+        )
+    }
+
     /// The world-space ray through film position `film` (pixels) with lens sample `lens`.
     #[inline]
     pub fn ray(&self, film: Vec2, lens: Vec2) -> CameraRay {
@@ -132,7 +146,19 @@ impl Camera {
     /// The film position (pixels) where world point `p` projects, if it is in front of the
     /// camera (pinhole geometry; used for motion vectors and reprojection).
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
-        let local = self.to_world.inverse().transform_point3(p);
+        self.project_local(self.to_camera.transform_point3(p))
+    }
+
+    /// The film position (pixels) where points infinitely far in world direction `d` project
+    /// (the environment), if they are in front of the camera.
+    pub fn project_direction(&self, d: Vec3) -> Option<Vec2> {
+        match self.kind {
+            Kind::Perspective { .. } => self.project_local(self.to_camera.transform_vector3(d)),
+            Kind::Orthographic { .. } => None,
+        }
+    }
+
+    fn project_local(&self, local: Vec3) -> Option<Vec2> {
         if local.z >= 0.0 && matches!(self.kind, Kind::Perspective { .. }) {
             return None;
         }

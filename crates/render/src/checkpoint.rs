@@ -45,6 +45,7 @@ impl Header {
         let strip = |h: &Header| Header {
             config: Config {
                 spp: 0,
+                display: Default::default(),
                 ..h.config.clone()
             },
             ..h.clone()

@@ -15,7 +15,8 @@ use crate::sampler::SamplerKind;
 pub struct Config {
     pub width: u32,
     pub height: u32,
-    /// Samples per pixel.
+    /// Samples per pixel: of the whole image for `render` and references, of each frame in
+    /// the frame pipeline.
     pub spp: u32,
     /// Seeds every random decision of the image.
     pub seed: u64,
@@ -29,6 +30,64 @@ pub struct Config {
     pub microfacet: Microfacet,
     pub light_selection: LightSelection,
     pub camera: CameraConfig,
+    /// The real-time frame pipeline's passes (`view`, `play`, `bench frame`, `eval`).
+    pub frame: FrameConfig,
+    /// How images are shown and written as 8-bit pictures.
+    pub display: DisplayConfig,
+}
+
+/// The passes of the real-time frame pipeline ([`crate::frame`]) and their parameters. A
+/// frame traces `spp` samples per pixel (the first through the G-buffer), then accumulates
+/// them with the earlier frames while nothing changes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FrameConfig {
+    /// Progressive accumulation: average the frames while the camera and the settings stay
+    /// the same; any change starts afresh. Off: every frame stands alone.
+    pub accumulate: bool,
+    /// Accumulation stops adding samples after this many frames (0: never).
+    pub max_frames: u32,
+}
+
+impl Default for FrameConfig {
+    fn default() -> Self {
+        Self {
+            accumulate: true,
+            max_frames: 0,
+        }
+    }
+}
+
+/// Tone mapping and the picture shown.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DisplayConfig {
+    /// Multiplier of linear radiance before tone mapping.
+    pub exposure: f32,
+    pub tonemap: Tonemap,
+    /// What the viewer shows and the player writes.
+    pub mode: crate::frame::display::DisplayMode,
+}
+
+impl Default for DisplayConfig {
+    fn default() -> Self {
+        Self {
+            exposure: 1.0,
+            tonemap: Tonemap::Clamp,
+            mode: crate::frame::display::DisplayMode::Final,
+        }
+    }
+}
+
+/// Linear radiance (after exposure) to display values in [0, 1], then sRGB-encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Tonemap {
+    /// Clamp to [0, 1] (what `pathlight render` writes to PNG).
+    #[default]
+    Clamp,
+    /// The ACES filmic curve (Narkowicz's fit): highlights roll off instead of clipping.
+    Aces,
 }
 
 /// Largest image side accepted.
@@ -62,7 +121,7 @@ impl Default for Config {
         Self {
             width: 640,
             height: 360,
-            spp: 64,
+            spp: 1,
             seed: 0,
             sampler: SamplerKind::Sobol,
             max_bounces: None,
@@ -70,11 +129,23 @@ impl Default for Config {
             microfacet: Microfacet::Ggx,
             light_selection: LightSelection::Power,
             camera: CameraConfig::default(),
+            frame: FrameConfig::default(),
+            display: DisplayConfig::default(),
         }
     }
 }
 
 impl Config {
+    /// The default real-time configuration (`view`, `play`, `bench frame`): one sample per
+    /// pixel per frame and two scattering events per path (next event estimation at both, so
+    /// direct light and one bounce of indirect light), accumulated while the camera is still.
+    pub fn realtime() -> Self {
+        Self {
+            max_bounces: Some(2),
+            ..Self::default()
+        }
+    }
+
     /// Checks every value's range: image sides in 1..=[`MAX_SIDE`], spp in 1..=[`MAX_SPP`],
     /// field of view in (0, 180), finite non-negative lens radius, finite positive focus
     /// distance, finite camera vectors.
@@ -91,6 +162,13 @@ impl Config {
         }
         if self.spp == 0 || self.spp > MAX_SPP {
             return Err(err("spp", &self.spp, format!("between 1 and {MAX_SPP}")));
+        }
+        if !(self.display.exposure.is_finite() && self.display.exposure >= 0.0) {
+            return Err(err(
+                "exposure",
+                &self.display.exposure,
+                "finite and >= 0".into(),
+            ));
         }
         let cam = &self.camera;
         if let Some(f) = cam.fov_y {

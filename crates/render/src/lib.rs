@@ -1,13 +1,16 @@
-//! Rendering in pathlight: BSDFs, light sampling, cameras, low-discrepancy samplers and the
-//! reference path tracer. The real-time passes of later issues build on the same pieces.
+//! Rendering in pathlight: BSDFs, light sampling, cameras, low-discrepancy samplers, the
+//! reference path tracer and the real-time frame pipeline ([`frame`]), whose passes the
+//! techniques plug into.
 
 pub mod alias;
 pub mod bsdf;
 pub mod camera;
+pub mod camera_path;
 pub mod checkpoint;
 pub mod config;
 pub mod distribution;
 pub mod film;
+pub mod frame;
 pub mod light;
 pub mod output;
 pub mod path;
@@ -19,4 +22,5 @@ pub mod world;
 pub use camera::Camera;
 pub use config::Config;
 pub use film::Film;
+pub use frame::Pipeline;
 pub use world::World;

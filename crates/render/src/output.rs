@@ -8,7 +8,9 @@ use glam::Vec3;
 use image::ImageEncoder;
 use pathlight_core::color::linear_to_srgb8;
 
+use crate::config::DisplayConfig;
 use crate::film::Film;
+use crate::frame::display::tonemap;
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -68,17 +70,47 @@ impl Format {
     }
 }
 
-/// Encodes linear RGB as an 8-bit sRGB PNG after multiplying by `exposure` (clamped to [0, 1]).
-pub fn encode_png(width: u32, height: u32, rgb: &[Vec3], exposure: f32) -> Vec<u8> {
+/// Encodes linear RGB as an 8-bit sRGB PNG after the display's exposure and tone mapping
+/// (non-finite values as black).
+pub fn encode_png(width: u32, height: u32, rgb: &[Vec3], display: &DisplayConfig) -> Vec<u8> {
     let bytes: Vec<u8> = rgb
         .iter()
         .flat_map(|c| {
-            (*c * exposure)
+            tonemap(*c * display.exposure, display.tonemap)
                 .to_array()
-                .map(|v| linear_to_srgb8(if v.is_finite() { v } else { 0.0 }))
+                .map(linear_to_srgb8)
         })
         .collect();
     encode_rgb8_png(width, height, &bytes)
+}
+
+/// Writes linear RGB to `path`: .png tone-mapped and sRGB-encoded as `display` says, .exr as
+/// linear 32-bit float RGB; atomically.
+pub fn write_rgb(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[Vec3],
+    display: &DisplayConfig,
+) -> Result<(), OutputError> {
+    let bytes = match Format::from_path(path)? {
+        Format::Png => encode_png(width, height, rgb, display),
+        Format::Exr => {
+            let mut ch = Channels::new(width, height);
+            ch.add_rgb("", ["R", "G", "B"], rgb);
+            ch.encode_exr().map_err(|e| error(path, e))?
+        }
+    };
+    write_atomic(path, &bytes)
+}
+
+/// Encodes 8-bit RGBA (row-major, 4 bytes per pixel) as a PNG.
+pub fn encode_rgba8_png(width: u32, height: u32, rgba8: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(rgba8, width, height, image::ExtendedColorType::Rgba8)
+        .expect("encoding a PNG into memory cannot fail");
+    out
 }
 
 /// Encodes 8-bit RGB (row-major, 3 bytes per pixel) as a PNG.
@@ -146,12 +178,17 @@ impl Channels {
     }
 }
 
-/// Writes the film's mean radiance to `path` (.png: tone-mapped sRGB with `exposure`; .exr:
+/// Writes the film's mean radiance to `path` (.png: tone-mapped sRGB as `display` says; .exr:
 /// linear RGB, plus with `aovs` the layers albedo, normal (X, Y, Z), depth (Z), direct,
 /// indirect and variance (per-sample variance of radiance, n - 1 estimator) and spp).
-pub fn write_film(path: &Path, film: &Film, aovs: bool, exposure: f32) -> Result<(), OutputError> {
+pub fn write_film(
+    path: &Path,
+    film: &Film,
+    aovs: bool,
+    display: &DisplayConfig,
+) -> Result<(), OutputError> {
     let bytes = match Format::from_path(path)? {
-        Format::Png => encode_png(film.width, film.height, &film.layer(|p| p.mean), exposure),
+        Format::Png => encode_png(film.width, film.height, &film.layer(|p| p.mean), display),
         Format::Exr => {
             let mut ch = Channels::new(film.width, film.height);
             ch.add_rgb("", ["R", "G", "B"], &film.layer(|p| p.mean));

@@ -37,6 +37,54 @@ pub struct PathSample {
     /// Distance from the camera along its view axis to the first hit (zero when the ray
     /// escapes).
     pub depth: f32,
+    /// The first bounce: what the path did after the first hit.
+    pub bounce: Bounce,
+    /// Rays traced for this sample (closest-hit and shadow queries).
+    pub rays: u32,
+}
+
+/// The first bounce of a path (seed 001's features and seed 000's reprojection data): the
+/// direction chosen at the first hit and the vertex it led to. Zero where the path ended
+/// before.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Bounce {
+    /// Unit world direction sampled at the first hit.
+    pub direction: Vec3,
+    /// The second vertex's position and shading normal.
+    pub position: Vec3,
+    pub normal: Vec3,
+    /// Base colour at the first non-specular vertex after the first hit, through mirror and
+    /// glass chains (seed 001's "texture2").
+    pub albedo: Vec3,
+}
+
+/// A surface a ray hit, with its shading: the first vertex of a path.
+#[derive(Debug, Clone, Copy)]
+pub struct Vertex {
+    pub hit: Hit,
+    pub surface: Surface,
+    pub shading: Shading,
+}
+
+impl Vertex {
+    /// The vertex of `hit` on `ray`.
+    pub fn new(world: &World, ray: &Ray, hit: Hit, microfacet: crate::bsdf::Microfacet) -> Self {
+        let surface = Surface::new(world, ray, &hit);
+        let shading = surface.shade(world, microfacet);
+        Self {
+            hit,
+            surface,
+            shading,
+        }
+    }
+}
+
+/// The start of a camera path: its ray and the random streams the rest of it uses.
+#[derive(Debug, Clone)]
+pub struct CameraSample {
+    pub ray: Ray,
+    pub sampler: PixelSampler,
+    pub rng: Rng,
 }
 
 impl PathSample {
@@ -88,25 +136,57 @@ fn finite_or_zero(v: Vec3) -> Vec3 {
 impl PathTracer<'_> {
     /// Sample `index` of pixel (`x`, `y`): a box-filtered (uniform jitter) camera path.
     pub fn sample_pixel(&self, x: u32, y: u32, index: u32) -> PathSample {
-        let mut sampler =
-            PixelSampler::with_kind(self.config.sampler, self.config.seed, x, y, index);
-        let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-        let lens = sampler.next_2d();
-        let ray = self.camera.ray(film, lens).ray;
-        let rng = Rng::new(hash(&[self.config.seed, x as u64, y as u64]), index as u64);
-        self.trace(ray, sampler, rng)
+        let CameraSample {
+            ray,
+            sampler,
+            mut rng,
+        } = self.camera_sample(x, y, index);
+        let mut rays = 0;
+        let first = self.intersect(ray, &mut rng, &mut rays);
+        let mut out = self.trace_from(ray, first, sampler, rng);
+        out.rays += rays;
+        out
     }
 
-    /// The closest surface along `ray` that is not cut away, with its shading.
-    fn intersect(&self, mut ray: Ray, rng: &mut Rng) -> Option<(Hit, Surface, Shading)> {
+    /// The camera ray of sample `index` of pixel (`x`, `y`) (box filter: uniform jitter over
+    /// the pixel) and the sampler and random stream of the rest of its path.
+    #[inline]
+    pub fn camera_sample(&self, x: u32, y: u32, index: u32) -> CameraSample {
+        let mut sampler = self.pixel_sampler(x, y, index);
+        let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+        let lens = sampler.next_2d();
+        CameraSample {
+            ray: self.camera.primary_ray(film, lens),
+            sampler,
+            rng: self.pixel_rng(x, y, index),
+        }
+    }
+
+    /// The sampler of sample `index` of pixel (`x`, `y`).
+    #[inline]
+    pub fn pixel_sampler(&self, x: u32, y: u32, index: u32) -> PixelSampler {
+        PixelSampler::with_kind(self.config.sampler, self.config.seed, x, y, index)
+    }
+
+    /// The random stream of sample `index` of pixel (`x`, `y`) (alpha cut-outs).
+    #[inline]
+    pub fn pixel_rng(&self, x: u32, y: u32, index: u32) -> Rng {
+        Rng::new(hash(&[self.config.seed, x as u64, y as u64]), index as u64)
+    }
+
+    /// The closest surface along `ray` that is not cut away, with its shading; counts the
+    /// rays traced into `rays`.
+    pub fn intersect(&self, mut ray: Ray, rng: &mut Rng, rays: &mut u32) -> Option<Vertex> {
         let world = self.world;
         for _ in 0..MAX_ALPHA_LAYERS {
+            *rays += 1;
             let hit = world.accel.intersect(&ray)?;
-            let surface = Surface::new(world, &ray, &hit);
-            let shading = surface.shade(world, self.config.microfacet);
-            if shading.alpha >= 1.0 || (shading.alpha > 0.0 && rng.next_f32() < shading.alpha) {
-                return Some((hit, surface, shading));
+            let v = Vertex::new(world, &ray, hit, self.config.microfacet);
+            let alpha = v.shading.alpha;
+            if alpha >= 1.0 || (alpha > 0.0 && rng.next_f32() < alpha) {
+                return Some(v);
             }
+            let surface = v.surface;
             // Continue behind the cut-out; `t` stays measured from the original origin.
             let origin = offset_origin(surface.p, surface.ng, ray.direction);
             let skipped = (origin - ray.origin).dot(ray.direction);
@@ -117,7 +197,7 @@ impl PathTracer<'_> {
 
     /// The fraction of light that passes from surface point `surface` along `dir` to a light
     /// `distance` away (1 or 0 for opaque scenes; blended surfaces let 1 - alpha through).
-    fn transmittance(&self, surface: &Surface, dir: Vec3, distance: f32) -> f32 {
+    fn transmittance(&self, surface: &Surface, dir: Vec3, distance: f32, rays: &mut u32) -> f32 {
         let world = self.world;
         let origin = surface.spawn_origin(dir);
         let t_max = if distance.is_finite() {
@@ -133,11 +213,13 @@ impl PathTracer<'_> {
             return 1.0;
         }
         let mut ray = Ray::segment(origin, dir, 0.0, t_max);
+        *rays += 1;
         if !world.has_alpha {
             return if world.accel.occluded(&ray) { 0.0 } else { 1.0 };
         }
         let mut tr = 1.0;
-        for _ in 0..MAX_ALPHA_LAYERS {
+        for layer in 0..MAX_ALPHA_LAYERS {
+            *rays += u32::from(layer > 0);
             let Some(hit) = world.accel.intersect(&ray) else {
                 return tr;
             };
@@ -154,8 +236,14 @@ impl PathTracer<'_> {
         0.0
     }
 
-    /// Follows one path from `ray`.
-    pub fn trace(&self, mut ray: Ray, mut sampler: PixelSampler, mut rng: Rng) -> PathSample {
+    /// Follows one path from `ray`, whose first surface (`intersect` of `ray`) is `first`.
+    pub fn trace_from(
+        &self,
+        mut ray: Ray,
+        first: Option<Vertex>,
+        mut sampler: PixelSampler,
+        mut rng: Rng,
+    ) -> PathSample {
         let world = self.world;
         let lights = &world.lights;
         let max_bounces = self.config.max_bounces.unwrap_or(u32::MAX);
@@ -168,9 +256,21 @@ impl PathTracer<'_> {
         let mut prev_p = ray.origin;
         // Absorption of the volume the ray travels through.
         let mut sigma_a = Vec3::ZERO;
+        let mut first = Some(first);
+        // The first non-specular vertex after the first hit has given its albedo.
+        let mut bounce_albedo_found = false;
         for bounce in 0..MAX_PATH_VERTICES {
             sampler.set_dimension(CAMERA_DIMENSIONS + bounce * VERTEX_DIMENSIONS);
-            let Some((hit, surface, shading)) = self.intersect(ray, &mut rng) else {
+            let found = match first.take() {
+                Some(v) => v,
+                None => self.intersect(ray, &mut rng, &mut out.rays),
+            };
+            let Some(Vertex {
+                hit,
+                surface,
+                shading,
+            }) = found
+            else {
                 // Escaped: the environment.
                 let le = lights.environment_radiance(ray.direction);
                 if le != Vec3::ZERO {
@@ -187,10 +287,20 @@ impl PathTracer<'_> {
                 beta *= (-sigma_a * hit.t).exp();
             }
             let wo = -ray.direction;
+            let bsdf = Bsdf::new(&shading.params);
             if bounce == 0 {
                 out.albedo = shading.params.base_color;
                 out.normal = surface.ns;
                 out.depth = hit.t * ray.direction.dot(self.camera.forward());
+            } else {
+                if bounce == 1 {
+                    out.bounce.position = surface.p;
+                    out.bounce.normal = surface.ns;
+                }
+                if !bounce_albedo_found && !bsdf.is_delta() {
+                    out.bounce.albedo = shading.params.base_color;
+                    bounce_albedo_found = true;
+                }
             }
             // Emission reached by BSDF sampling (or seen directly).
             let le = lights.emitted(
@@ -213,8 +323,12 @@ impl PathTracer<'_> {
             if bounce >= max_bounces {
                 break;
             }
-            let bsdf = Bsdf::new(&shading.params);
             let wo_local = surface.to_local(wo);
+            // The last scattering event the bounce limit allows: the next vertex could only
+            // add emission found by BSDF sampling. Without a delta lobe, next event
+            // estimation alone finds the same light (every emitter is in the light sampler),
+            // so it takes the whole weight and no continuation ray is traced.
+            let last = bounce + 1 >= max_bounces && !bsdf.has_delta_lobe();
             // Next event estimation.
             let u_light = sampler.next_1d();
             let u_point = sampler.next_2d();
@@ -228,9 +342,9 @@ impl PathTracer<'_> {
                         && f != Vec3::ZERO
                         && (same_side || shading.params.transmission > 0.0)
                     {
-                        let tr = self.transmittance(&surface, ls.wi, ls.distance);
+                        let tr = self.transmittance(&surface, ls.wi, ls.distance, &mut out.rays);
                         if tr > 0.0 {
-                            let w = if ls.delta {
+                            let w = if ls.delta || last {
                                 1.0
                             } else {
                                 power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local))
@@ -239,6 +353,9 @@ impl PathTracer<'_> {
                         }
                     }
                 }
+            }
+            if last {
+                break;
             }
             // Continue the path.
             let u_lobe = sampler.next_1d();
@@ -250,6 +367,9 @@ impl PathTracer<'_> {
                 break;
             }
             let wi = surface.to_world(bs.wi);
+            if bounce == 0 {
+                out.bounce.direction = wi;
+            }
             let crosses = wi.dot(surface.ng) * wo.dot(surface.ng) < 0.0;
             if crosses != bs.transmitted {
                 // The shading normal and the geometry disagree about the side: drop the path

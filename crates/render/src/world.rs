@@ -11,6 +11,8 @@ pub struct World {
     pub scene: Scene,
     pub accel: Box<dyn Accel>,
     pub lights: Lights,
+    /// How `lights` chooses a light.
+    light_selection: LightSelection,
     /// Object-to-world normal matrix (inverse transpose) per instance.
     pub(crate) normal_matrices: Vec<Mat3>,
     /// Object-to-world linear part per instance (tangents).
@@ -43,6 +45,7 @@ impl World {
             scene,
             accel,
             lights,
+            light_selection: selection,
             normal_matrices,
             linear,
             has_alpha,
@@ -51,6 +54,19 @@ impl World {
 }
 
 impl World {
+    /// How the light sampler chooses lights.
+    pub fn light_selection(&self) -> LightSelection {
+        self.light_selection
+    }
+
+    /// Rebuilds the light sampler for another way of choosing lights (when it differs).
+    pub fn set_light_selection(&mut self, selection: LightSelection) {
+        if selection != self.light_selection {
+            self.lights = Lights::new(&self.scene, selection);
+            self.light_selection = selection;
+        }
+    }
+
     /// The scene's first camera, or one that frames the whole scene from +Z when it has none.
     pub fn scene_camera(&self) -> pathlight_scene::Camera {
         if let Some(c) = self.scene.cameras.first() {
@@ -71,6 +87,24 @@ impl World {
             glam::Vec3::Y,
             fov,
         )
+    }
+
+    /// The centre of the scene's bounds (the origin for an empty scene).
+    pub fn scene_centre(&self) -> glam::Vec3 {
+        let b = self.scene.bounds();
+        if b.is_empty() {
+            glam::Vec3::ZERO
+        } else {
+            b.center()
+        }
+    }
+
+    /// The views of a camera path through this scene.
+    pub fn path_views(
+        &self,
+        path: &crate::camera_path::CameraPath,
+    ) -> Vec<crate::config::CameraConfig> {
+        path.views(&self.scene_camera(), self.scene_centre())
     }
 
     /// The render camera of `config`: the scene camera with the configuration's overrides, and

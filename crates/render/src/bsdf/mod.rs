@@ -546,6 +546,12 @@ impl Bsdf {
         })
     }
 
+    /// True when some lobe is a delta (a smooth specular reflection or transmission), whose
+    /// light only BSDF sampling can find.
+    pub fn has_delta_lobe(&self) -> bool {
+        (self.smooth && self.has_spec) || (self.trans_delta && self.w_trans > 0.0)
+    }
+
     /// True when every lobe is a delta (light sampling cannot contribute).
     pub fn is_delta(&self) -> bool {
         self.w_diffuse == 0.0

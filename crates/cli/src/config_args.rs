@@ -1,0 +1,268 @@
+//! Command-line options that set pathlight's one configuration type ([`Config`]), shared by
+//! `render`, `view`, `play` and `bench frame`: a TOML file (`--config`) and flags that
+//! override it.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use pathlight_render::bsdf::Microfacet;
+use pathlight_render::config::Tonemap;
+use pathlight_render::frame::display::DisplayMode;
+use pathlight_render::sampler::SamplerKind;
+use pathlight_render::Config;
+
+/// Largest configuration file read.
+const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+#[derive(Debug, Clone, Args)]
+#[command(next_help_heading = "Configuration")]
+pub struct ConfigArgs {
+    /// Settings from a TOML file (any field of pathlight's configuration; see the README); the
+    /// options below override it.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+
+    /// Image width in pixels.
+    #[arg(long, value_name = "W")]
+    pub width: Option<u32>,
+
+    /// Image height in pixels.
+    #[arg(long, value_name = "H")]
+    pub height: Option<u32>,
+
+    /// Samples per pixel (of the image for `render`, of each frame otherwise).
+    #[arg(long, value_name = "N")]
+    pub spp: Option<u32>,
+
+    /// Seed of every random decision.
+    #[arg(long, value_name = "S")]
+    pub seed: Option<u64>,
+
+    /// Maximum scattering events per path, or `unlimited` (Russian roulette ends paths).
+    #[arg(long, value_name = "B|unlimited", value_parser = parse_bounces)]
+    pub max_bounces: Option<Bounces>,
+
+    /// Camera position (overrides the scene's camera).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_from: Option<[f32; 3]>,
+
+    /// Point the camera looks at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_at: Option<[f32; 3]>,
+
+    /// Camera up direction.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<[f32; 3]>,
+
+    /// Vertical field of view.
+    #[arg(long, value_name = "DEGREES")]
+    pub fov_y: Option<f32>,
+
+    /// Thin-lens radius in scene units (depth of field); 0 is a pinhole.
+    #[arg(long, value_name = "R")]
+    pub lens_radius: Option<f32>,
+
+    /// Distance in focus [default: what the image centre sees].
+    #[arg(long, value_name = "D")]
+    pub focus_distance: Option<f32>,
+
+    /// Microfacet distribution of glossy lobes: ggx or beckmann.
+    #[arg(long, value_name = "NAME", value_parser = parse_microfacet)]
+    pub microfacet: Option<Microfacet>,
+
+    /// Sample values: sobol (Owen-scrambled Sobol points) or independent (plain Monte Carlo).
+    #[arg(long, value_name = "NAME", value_parser = parse_sampler)]
+    pub sampler: Option<SamplerKind>,
+
+    /// Exposure multiplier before tone mapping.
+    #[arg(long, value_name = "X")]
+    pub exposure: Option<f32>,
+
+    /// Tone mapping of 8-bit output: clamp or aces.
+    #[arg(long, value_name = "NAME", value_parser = parse_tonemap)]
+    pub tonemap: Option<Tonemap>,
+
+    /// What frames show (view, play): final, noisy, direct, indirect, variance, samples,
+    /// albedo, normal, depth, motion, roughness, metallic, bounce-albedo, bounce-direction.
+    #[arg(long, value_name = "MODE", value_parser = parse_display)]
+    pub display: Option<DisplayMode>,
+
+    /// Frame pipeline: do not accumulate frames while the camera is still.
+    #[arg(long)]
+    pub no_accumulate: bool,
+
+    /// Frame pipeline: stop accumulating after this many frames (0: never).
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<u32>,
+}
+
+/// A bounce limit: a number, or none.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Bounces(pub Option<u32>);
+
+fn parse_bounces(s: &str) -> Result<Bounces, String> {
+    if s == "unlimited" {
+        return Ok(Bounces(None));
+    }
+    s.parse::<u32>()
+        .map(|n| Bounces(Some(n)))
+        .map_err(|_| format!("{s:?}: a number of bounces or `unlimited`"))
+}
+
+pub fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got {s:?}"));
+    }
+    let mut out = [0.0; 3];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{p:?} is not a finite number"))?;
+    }
+    Ok(out)
+}
+
+/// Parses `WxH` (e.g. `1280x720`), each between 1 and 16384.
+pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WxH, got {s:?}"))?;
+    let side = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=16384).contains(n))
+            .ok_or_else(|| format!("{v:?}: a size between 1 and 16384"))
+    };
+    Ok([side(w)?, side(h)?])
+}
+
+/// Parses a configuration enum by its serde name (the same names as in TOML files).
+fn parse_named<T: serde::de::DeserializeOwned>(s: &str, names: &str) -> Result<T, String> {
+    serde_json::from_value(serde_json::Value::String(s.to_owned()))
+        .map_err(|_| format!("{s:?}: one of {names}"))
+}
+
+fn parse_microfacet(s: &str) -> Result<Microfacet, String> {
+    parse_named(s, "ggx, beckmann")
+}
+
+fn parse_sampler(s: &str) -> Result<SamplerKind, String> {
+    parse_named(s, "sobol, independent")
+}
+
+fn parse_tonemap(s: &str) -> Result<Tonemap, String> {
+    parse_named(s, "clamp, aces")
+}
+
+fn parse_display(s: &str) -> Result<DisplayMode, String> {
+    s.parse()
+}
+
+/// Reads a configuration file (TOML, any subset of [`Config`]'s fields over `base`).
+pub fn load_config(path: &std::path::Path, base: &Config) -> Result<Config> {
+    let meta = std::fs::metadata(path).with_context(|| format!("{}", path.display()))?;
+    if meta.len() > MAX_CONFIG_BYTES {
+        bail!(
+            "{}: {} bytes; a configuration is at most {MAX_CONFIG_BYTES} bytes",
+            path.display(),
+            meta.len()
+        );
+    }
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+    // Fields the file leaves out keep `base`'s values: merge the file's table over base's.
+    let mut merged = toml::Value::try_from(base).expect("a Config serialises to TOML");
+    let file: toml::Value =
+        toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    merge(&mut merged, file);
+    merged
+        .try_into()
+        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// Merges `over` into `base`, table by table.
+fn merge(base: &mut toml::Value, over: toml::Value) {
+    match (base, over) {
+        (toml::Value::Table(b), toml::Value::Table(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
+impl ConfigArgs {
+    /// The configuration: `base`, then the `--config` file, then the flags. Not checked yet:
+    /// the caller may still fill in values (e.g. the height from the camera's aspect ratio)
+    /// before [`check`].
+    pub fn apply(&self, base: Config) -> Result<Config> {
+        let mut c = match &self.config {
+            Some(path) => load_config(path, &base)?,
+            None => base,
+        };
+        if let Some(v) = self.width {
+            c.width = v;
+        }
+        if let Some(v) = self.height {
+            c.height = v;
+        }
+        if let Some(v) = self.spp {
+            c.spp = v;
+        }
+        if let Some(v) = self.seed {
+            c.seed = v;
+        }
+        if let Some(Bounces(v)) = self.max_bounces {
+            c.max_bounces = v;
+        }
+        let cam = &mut c.camera;
+        cam.look_from = self.look_from.or(cam.look_from);
+        cam.look_at = self.look_at.or(cam.look_at);
+        cam.up = self.up.or(cam.up);
+        cam.fov_y = self.fov_y.or(cam.fov_y);
+        if let Some(v) = self.lens_radius {
+            cam.lens_radius = v;
+        }
+        cam.focus_distance = self.focus_distance.or(cam.focus_distance);
+        if let Some(v) = self.microfacet {
+            c.microfacet = v;
+        }
+        if let Some(v) = self.sampler {
+            c.sampler = v;
+        }
+        if let Some(v) = self.exposure {
+            c.display.exposure = v;
+        }
+        if let Some(v) = self.tonemap {
+            c.display.tonemap = v;
+        }
+        if let Some(v) = self.display {
+            c.display.mode = v;
+        }
+        if self.no_accumulate {
+            c.frame.accumulate = false;
+        }
+        if let Some(v) = self.max_frames {
+            c.frame.max_frames = v;
+        }
+        Ok(c)
+    }
+}
+
+/// [`Config::validate`] as a command-line error.
+pub fn check(c: &Config) -> Result<()> {
+    if let Err(e) = c.validate() {
+        bail!("{} {}: must be {}", e.option(), e.value, e.requirement);
+    }
+    Ok(())
+}

@@ -1,0 +1,296 @@
+//! `pathlight play [SCENE] --path PATH.toml`: the headless twin of the viewer. Renders a
+//! scripted camera path frame by frame through the real-time frame pipeline and writes the
+//! frames (PNG or EXR) and per-frame, per-pass timings (JSON).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use pathlight_render::camera_path::{CameraPath, PathKind};
+use pathlight_render::config::CameraConfig;
+use pathlight_render::frame::{FrameReport, Pipeline};
+use pathlight_render::output::{encode_rgba8_png, write_atomic, write_rgb};
+use pathlight_render::{Config, World};
+use serde::Serialize;
+
+use crate::bench::Summary;
+use crate::config_args::{check, ConfigArgs};
+use crate::SceneArgs;
+
+/// Largest path file read.
+const MAX_PATH_BYTES: u64 = 1 << 20;
+/// Most frames one run renders.
+const MAX_FRAMES: u64 = 1_000_000;
+
+#[derive(Debug, Args)]
+pub struct PlayArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+
+    /// The camera path: a TOML file, or a built-in protocol: `rotation` (seed 000: 100 degrees
+    /// in 5-degree steps, 32 frames at each), `translation` (a fifth of the scene's size to the
+    /// right in 20 steps), `orbit` (a full turn in 120 steps) or `still` (64 frames).
+    #[arg(long, value_name = "PATH.toml|NAME")]
+    pub path: String,
+
+    /// Frames to render [default: the path's own count]; past the path's end the last view
+    /// stays (and accumulates).
+    #[arg(long, value_name = "N")]
+    pub frames: Option<u64>,
+
+    /// Folder for the frames (`frame-00000.png` ...) and `frames.json`; without it nothing is
+    /// written but the summary.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+
+    /// Image format of the frames: png (the display mode as shown) or exr (its linear values).
+    #[arg(long, value_enum, default_value_t = FrameFormat::Png)]
+    pub format: FrameFormat,
+
+    #[command(flatten)]
+    pub settings: ConfigArgs,
+
+    /// Worker threads [default: all cores]; the frames do not depend on it.
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+
+    /// Print one JSON object (frames, median times per frame and per pass) as the last line.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FrameFormat {
+    Png,
+    Exr,
+}
+
+/// One frame in `frames.json`.
+#[derive(Debug, Serialize)]
+struct FrameRecord<'a> {
+    /// Index along the run, from 0.
+    index: u64,
+    /// Index of the path's view.
+    view: usize,
+    file: Option<String>,
+    #[serde(flatten)]
+    report: &'a FrameReport,
+}
+
+/// The built-in protocols and path files.
+fn load_path(arg: &str, world: &World, config: &Config) -> Result<CameraPath> {
+    let camera = CameraPath {
+        look_from: config.camera.look_from,
+        look_at: config.camera.look_at,
+        up: config.camera.up,
+        fov_y: config.camera.fov_y,
+        ..CameraPath::default()
+    };
+    let path = match arg {
+        "still" => CameraPath {
+            frames_per_view: 64,
+            ..camera
+        },
+        "rotation" => CameraPath {
+            path: PathKind::Rotation,
+            degrees: 100.0,
+            step_degrees: 5.0,
+            frames_per_view: 32,
+            ..camera
+        },
+        "translation" => {
+            let view = config.camera.apply(&world.scene_camera());
+            let right = view.transform.x_axis.truncate().normalize_or_zero();
+            let b = world.scene.bounds();
+            let size = if b.is_empty() {
+                1.0
+            } else {
+                b.diagonal().length()
+            };
+            CameraPath {
+                path: PathKind::Translation,
+                offset: (right * 0.2 * size).to_array(),
+                steps: 20,
+                ..camera
+            }
+        }
+        "orbit" => CameraPath {
+            path: PathKind::Orbit,
+            degrees: 360.0,
+            steps: 120,
+            ..camera
+        },
+        file => {
+            let p = Path::new(file);
+            let meta = std::fs::metadata(p).with_context(|| file.to_string())?;
+            if meta.len() > MAX_PATH_BYTES {
+                bail!(
+                    "{file}: {} bytes; a camera path is at most {MAX_PATH_BYTES}",
+                    meta.len()
+                );
+            }
+            let text = std::fs::read_to_string(p).with_context(|| file.to_string())?;
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{file}: {e}"))?
+        }
+    };
+    path.validate().map_err(|e| anyhow::anyhow!("{arg}: {e}"))?;
+    Ok(path)
+}
+
+pub fn run(args: &PlayArgs) -> Result<()> {
+    let config = args.settings.apply(Config::realtime())?;
+    check(&config)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("starting the worker threads")?;
+    let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
+    let world = pool.install(|| World::new(scene, config.light_selection));
+    let path = load_path(&args.path, &world, &config)?;
+    let views = world.path_views(&path);
+    let per_view = path.frames_per_view.max(1) as u64;
+    let frames = args.frames.unwrap_or(views.len() as u64 * per_view);
+    if frames == 0 || frames > MAX_FRAMES {
+        bail!("--frames {frames}: must be between 1 and {MAX_FRAMES}");
+    }
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+    }
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let bar = if args.quiet || args.json {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(frames)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} frames {msg} ETA {eta}",
+        )
+        .expect("a valid template"),
+    );
+
+    let with_view = |view: &CameraConfig| Config {
+        camera: CameraConfig {
+            lens_radius: config.camera.lens_radius,
+            focus_distance: config.camera.focus_distance,
+            ..view.clone()
+        },
+        ..config.clone()
+    };
+    let mut pipeline = Pipeline::new(with_view(&views[0]));
+    let mut reports = Vec::new();
+    let mut records = Vec::new();
+    let mut linear = Vec::new();
+    for index in 0..frames {
+        if cancel.load(Ordering::Relaxed) {
+            break;
+        }
+        let view = ((index / per_view) as usize).min(views.len() - 1);
+        pipeline.set_config(&with_view(&views[view]));
+        let mut report = pool.install(|| pipeline.render_frame(&world));
+        pool.install(|| pipeline.display(&mut report));
+        let file = match &args.out {
+            Some(dir) => {
+                let name = format!(
+                    "frame-{index:05}.{}",
+                    match args.format {
+                        FrameFormat::Png => "png",
+                        FrameFormat::Exr => "exr",
+                    }
+                );
+                let target = dir.join(&name);
+                match args.format {
+                    FrameFormat::Png => write_atomic(
+                        &target,
+                        &encode_rgba8_png(config.width, config.height, &pipeline.rgba),
+                    )?,
+                    FrameFormat::Exr => {
+                        pool.install(|| {
+                            linear = pipeline.sources().linear(config.display.mode);
+                        });
+                        write_rgb(
+                            &target,
+                            config.width,
+                            config.height,
+                            &linear,
+                            &config.display,
+                        )?
+                    }
+                }
+                Some(name)
+            }
+            None => None,
+        };
+        bar.set_message(format!("{:.1} ms", report.ms));
+        bar.inc(1);
+        records.push((index, view, file));
+        reports.push(report);
+    }
+    bar.finish_and_clear();
+    let done = reports.len() as u64;
+    if let Some(dir) = &args.out {
+        let list: Vec<FrameRecord> = records
+            .iter()
+            .zip(&reports)
+            .map(|((index, view, file), report)| FrameRecord {
+                index: *index,
+                view: *view,
+                file: file.clone(),
+                report,
+            })
+            .collect();
+        let json = serde_json::to_vec_pretty(&list).expect("frames serialise");
+        write_atomic(&dir.join("frames.json"), &json)?;
+    }
+    let summary = Summary::of(&reports, pool.current_num_threads());
+    if done < frames {
+        bail!(
+            "stopped after {done} of {frames} frames{}",
+            args.out
+                .as_ref()
+                .map_or(String::new(), |d| format!(" (written to {})", d.display()))
+        );
+    }
+    eprintln!(
+        "{} frames of {}x{} ({} views), median {:.2} ms per frame ({:.1} fps): {}",
+        done,
+        config.width,
+        config.height,
+        views.len(),
+        summary.ms_per_frame,
+        1e3 / summary.ms_per_frame.max(1e-9),
+        summary
+            .passes
+            .iter()
+            .map(|(p, ms)| format!("{p} {ms:.2} ms"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "frames": done,
+                "views": views.len(),
+                "width": config.width,
+                "height": config.height,
+                "threads": summary.threads,
+                "ms_per_frame": summary.ms_per_frame,
+                "mrays_per_s": summary.mrays_per_s,
+                "passes": summary.passes_json(),
+                "out": args.out,
+            })
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,320 @@
+//! The display pass: one of the pipeline's buffers (the final image, the noisy input, a
+//! G-buffer feature, a statistic) as 8-bit RGBA for the screen or a PNG, tone-mapped where it
+//! is radiance; or as linear values for EXR files.
+
+use glam::{Vec3, Vec4};
+use pathlight_core::color::{linear_to_srgb8, luminance};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::config::{DisplayConfig, Tonemap};
+
+use super::accumulation::PixelStats;
+use super::gbuffer::GBuffer;
+use super::lighting::LightSample;
+
+/// What is shown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DisplayMode {
+    /// The accumulated image (mean radiance over the frames so far).
+    #[default]
+    Final,
+    /// This frame's radiance alone (the pipeline's noisy input).
+    Noisy,
+    /// Accumulated direct light (from emitters straight to the first surface).
+    Direct,
+    /// Accumulated indirect light (everything that bounced more).
+    Indirect,
+    /// Relative standard error of the accumulated mean (luminance), as a heat map 0 to 1.
+    Variance,
+    /// Samples per pixel accumulated, from black (none) to white (the most).
+    Samples,
+    /// G-buffer: base colour at the first hit.
+    Albedo,
+    /// G-buffer: shading normal (x, y, z mapped from [-1, 1] to [0, 1]).
+    Normal,
+    /// G-buffer: depth, near white to far black; the sky black.
+    Depth,
+    /// G-buffer: motion since the previous frame (red: x, green: y; grey is still; 32 pixels
+    /// to full scale).
+    Motion,
+    /// G-buffer: perceptual roughness (grey).
+    Roughness,
+    /// G-buffer: metallic (grey).
+    Metallic,
+    /// Lighting: base colour at the first non-specular vertex after the first hit (seed 001's
+    /// "texture2").
+    BounceAlbedo,
+    /// Lighting: the direction chosen at the first hit (mapped from [-1, 1] to [0, 1]).
+    BounceDirection,
+}
+
+impl DisplayMode {
+    /// Every mode with its pass, in menu order.
+    pub const ALL: [DisplayMode; 14] = [
+        DisplayMode::Final,
+        DisplayMode::Noisy,
+        DisplayMode::Direct,
+        DisplayMode::Indirect,
+        DisplayMode::Variance,
+        DisplayMode::Samples,
+        DisplayMode::Albedo,
+        DisplayMode::Normal,
+        DisplayMode::Depth,
+        DisplayMode::Motion,
+        DisplayMode::Roughness,
+        DisplayMode::Metallic,
+        DisplayMode::BounceAlbedo,
+        DisplayMode::BounceDirection,
+    ];
+
+    /// The name in configurations and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            DisplayMode::Final => "final",
+            DisplayMode::Noisy => "noisy",
+            DisplayMode::Direct => "direct",
+            DisplayMode::Indirect => "indirect",
+            DisplayMode::Variance => "variance",
+            DisplayMode::Samples => "samples",
+            DisplayMode::Albedo => "albedo",
+            DisplayMode::Normal => "normal",
+            DisplayMode::Depth => "depth",
+            DisplayMode::Motion => "motion",
+            DisplayMode::Roughness => "roughness",
+            DisplayMode::Metallic => "metallic",
+            DisplayMode::BounceAlbedo => "bounce-albedo",
+            DisplayMode::BounceDirection => "bounce-direction",
+        }
+    }
+
+    /// The pass whose buffer the mode shows.
+    pub fn pass(self) -> &'static str {
+        use DisplayMode::*;
+        match self {
+            Final | Direct | Indirect | Variance | Samples => super::ACCUMULATE,
+            Noisy | BounceAlbedo | BounceDirection => super::LIGHTING,
+            Albedo | Normal | Depth | Motion | Roughness | Metallic => super::PRIMARY,
+        }
+    }
+
+    /// True for radiance, which exposure and tone mapping apply to.
+    pub fn is_radiance(self) -> bool {
+        matches!(
+            self,
+            DisplayMode::Final | DisplayMode::Noisy | DisplayMode::Direct | DisplayMode::Indirect
+        )
+    }
+}
+
+impl std::str::FromStr for DisplayMode {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        DisplayMode::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = DisplayMode::ALL.iter().map(|m| m.name()).collect();
+                format!("unknown display mode `{s}`; one of {}", names.join(", "))
+            })
+    }
+}
+
+/// The buffers a display mode reads.
+pub struct Sources<'a> {
+    pub gbuffer: &'a GBuffer,
+    pub lighting: &'a [LightSample],
+    pub history: &'a [PixelStats],
+}
+
+impl Sources<'_> {
+    /// The linear value of `mode` at pixel `i`: radiance, the feature itself (normal and
+    /// direction in [-1, 1], depth in scene units with the sky infinite, motion in pixels as
+    /// (x, y, 0), albedo), the variance of the accumulated mean, or the sample count.
+    pub fn value(&self, mode: DisplayMode, i: usize) -> Vec3 {
+        let g = &self.gbuffer.pixels[i];
+        let l = &self.lighting[i];
+        let h = &self.history[i];
+        match mode {
+            DisplayMode::Final => h.mean(),
+            DisplayMode::Noisy => l.stats.mean(),
+            DisplayMode::Direct => h.direct.mean,
+            DisplayMode::Indirect => h.indirect.mean,
+            DisplayMode::Variance => h.variance() / h.n.max(1) as f32,
+            DisplayMode::Samples => Vec3::splat(h.n as f32),
+            DisplayMode::Albedo => g.albedo,
+            DisplayMode::Normal => g.normal,
+            DisplayMode::Depth => Vec3::splat(g.depth),
+            DisplayMode::Motion => g.motion.extend(0.0),
+            DisplayMode::Roughness => Vec3::splat(g.roughness),
+            DisplayMode::Metallic => Vec3::splat(g.metallic),
+            DisplayMode::BounceAlbedo => l.bounce.albedo,
+            DisplayMode::BounceDirection => l.bounce.direction,
+        }
+    }
+
+    /// The whole image of `mode` as linear values (see [`value`](Self::value)).
+    pub fn linear(&self, mode: DisplayMode) -> Vec<Vec3> {
+        (0..self.gbuffer.pixels.len())
+            .into_par_iter()
+            .map(|i| self.value(mode, i))
+            .collect()
+    }
+
+    /// The image of `mode` as 8-bit RGBA (alpha 255) into `out`: radiance after exposure and
+    /// tone mapping, sRGB-encoded; features mapped to [0, 1] as each mode says.
+    pub fn rgba8(&self, mode: DisplayMode, display: &DisplayConfig, out: &mut Vec<u8>) {
+        let n = self.gbuffer.pixels.len();
+        out.resize(n * 4, 0);
+        // Image-wide scales: the farthest finite depth, the most samples.
+        let (max_depth, max_n) = match mode {
+            DisplayMode::Depth => (
+                self.gbuffer
+                    .pixels
+                    .par_iter()
+                    .map(|g| g.depth)
+                    .filter(|d| d.is_finite())
+                    .reduce(|| 0.0, f32::max),
+                0,
+            ),
+            DisplayMode::Samples => (0.0, self.history.par_iter().map(|h| h.n).max().unwrap_or(0)),
+            _ => (0.0, 0),
+        };
+        out.par_chunks_mut(4 * 256)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (k, px) in chunk.chunks_exact_mut(4).enumerate() {
+                    let i = c * 256 + k;
+                    let v = self.value(mode, i);
+                    let rgb = match mode {
+                        m if m.is_radiance() => {
+                            let t = tonemap(v * display.exposure, display.tonemap);
+                            t.to_array().map(linear_to_srgb8)
+                        }
+                        DisplayMode::Albedo | DisplayMode::BounceAlbedo => {
+                            v.to_array().map(linear_to_srgb8)
+                        }
+                        DisplayMode::Normal | DisplayMode::BounceDirection => {
+                            let zero = v == Vec3::ZERO;
+                            let u = if zero { Vec3::ZERO } else { v * 0.5 + 0.5 };
+                            unorm8(u)
+                        }
+                        DisplayMode::Depth => {
+                            unorm8(Vec3::splat(if v.x.is_finite() && max_depth > 0.0 {
+                                1.0 - 0.9 * v.x / max_depth
+                            } else {
+                                0.0
+                            }))
+                        }
+                        DisplayMode::Motion => {
+                            unorm8(Vec3::new(0.5 + v.x / 32.0, 0.5 + v.y / 32.0, 0.5))
+                        }
+                        DisplayMode::Variance => {
+                            let h = &self.history[i];
+                            let relative = luminance(v).max(0.0).sqrt()
+                                / (luminance(h.mean()).max(0.0) + 1e-3);
+                            viridis(relative)
+                        }
+                        DisplayMode::Samples => unorm8(Vec3::splat(v.x / max_n.max(1) as f32)),
+                        _ => unorm8(v),
+                    };
+                    px.copy_from_slice(&[rgb[0], rgb[1], rgb[2], 255]);
+                }
+            });
+    }
+}
+
+/// A value in [0, 1] (clamped) to 8 bits, without encoding.
+fn unorm8(v: Vec3) -> [u8; 3] {
+    v.to_array()
+        .map(|c| (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+}
+
+/// Linear radiance to display-linear values in [0, 1].
+pub fn tonemap(v: Vec3, tonemap: Tonemap) -> Vec3 {
+    let v = if v.is_finite() {
+        v.max(Vec3::ZERO)
+    } else {
+        Vec3::ZERO
+    };
+    match tonemap {
+        Tonemap::Clamp => v.min(Vec3::ONE),
+        // Narkowicz 2015, "ACES Filmic Tone Mapping Curve".
+        Tonemap::Aces => {
+            ((v * (2.51 * v + 0.03)) / (v * (2.43 * v + 0.59) + 0.14)).clamp(Vec3::ZERO, Vec3::ONE)
+        }
+    }
+}
+
+/// The viridis colour map at `t` in [0, 1] (clamped), as sRGB bytes: a degree-6 polynomial
+/// fit of matplotlib's table (Matt Zucker's, error under 1/255).
+pub fn viridis(t: f32) -> [u8; 3] {
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    const C: [Vec4; 7] = [
+        Vec4::new(0.277_727_33, 0.005_407_344_5, 0.334_099_8, 0.0),
+        Vec4::new(0.105_093_04, 1.404_613_5, 1.384_590_2, 0.0),
+        Vec4::new(-0.330_861_83, 0.214_847_56, 0.095_095_16, 0.0),
+        Vec4::new(-4.634_230_6, -5.799_101, -19.332_441, 0.0),
+        Vec4::new(6.228_27, 14.179_933, 56.690_55, 0.0),
+        Vec4::new(4.776_385, -13.745_146, -65.353_03, 0.0),
+        Vec4::new(-5.435_456, 4.645_852_6, 26.312_435, 0.0),
+    ];
+    let mut c = C[6];
+    for k in (0..6).rev() {
+        c = C[k] + t * c;
+    }
+    unorm8(c.truncate())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_back() {
+        for m in DisplayMode::ALL {
+            assert_eq!(m.name().parse::<DisplayMode>().unwrap(), m);
+            let json = serde_json::to_string(&m).unwrap();
+            assert_eq!(json, format!("\"{}\"", m.name()));
+        }
+        assert!("nope"
+            .parse::<DisplayMode>()
+            .unwrap_err()
+            .contains("bounce-albedo"));
+    }
+
+    #[test]
+    fn tonemaps_stay_in_range_and_keep_black() {
+        for t in [Tonemap::Clamp, Tonemap::Aces] {
+            assert_eq!(tonemap(Vec3::ZERO, t), Vec3::ZERO);
+            assert_eq!(tonemap(Vec3::NAN, t), Vec3::ZERO);
+            let big = tonemap(Vec3::splat(1e6), t);
+            assert!(big.max_element() <= 1.0 && big.min_element() > 0.99);
+        }
+        // ACES is monotonic and rolls highlights off smoothly instead of clipping at 1.
+        let ys: Vec<f32> = (0..200)
+            .map(|i| tonemap(Vec3::splat(i as f32 * 0.05), Tonemap::Aces).x)
+            .collect();
+        assert!(ys.windows(2).all(|w| w[0] <= w[1]));
+        assert!(tonemap(Vec3::ONE, Tonemap::Aces).x < 0.85);
+    }
+
+    #[test]
+    fn viridis_ends_match_matplotlib() {
+        // matplotlib: viridis(0) = #440154, viridis(1) = #fde725.
+        let near = |a: [u8; 3], b: [u8; 3]| {
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| (*x as i32 - y as i32).abs() <= 4)
+        };
+        assert!(near(viridis(0.0), [0x44, 0x01, 0x54]), "{:?}", viridis(0.0));
+        assert!(near(viridis(1.0), [0xfd, 0xe7, 0x25]), "{:?}", viridis(1.0));
+        assert!(near(viridis(0.5), [0x21, 0x91, 0x8c]), "{:?}", viridis(0.5));
+    }
+}

@@ -1,0 +1,139 @@
+//! The G-buffer and the primary visibility pass that fills it: per pixel, the first surface
+//! that the frame's first camera sample sees, its features (position, normal, albedo,
+//! roughness, metallic, material, depth) and its motion since the previous frame; and, for the
+//! lighting pass, where the path goes on from there.
+
+use glam::{Vec2, Vec3};
+use pathlight_accel::Ray;
+use pathlight_core::rng::Rng;
+
+use crate::camera::Camera;
+use crate::path::{CameraSample, PathTracer, Vertex};
+use crate::sampler::PixelSampler;
+
+/// Material index of a pixel whose camera ray escaped.
+pub const NO_MATERIAL: u32 = u32::MAX;
+
+/// One pixel of the G-buffer.
+#[derive(Debug, Clone)]
+pub struct GPixel {
+    /// World position of the first hit (zero where the ray escaped).
+    pub position: Vec3,
+    /// Unit world shading normal at the first hit, facing the camera (zero where the ray
+    /// escaped).
+    pub normal: Vec3,
+    /// Base colour at the first hit (zero where the ray escaped).
+    pub albedo: Vec3,
+    pub roughness: f32,
+    pub metallic: f32,
+    /// Index into the scene's materials, [`NO_MATERIAL`] where the ray escaped.
+    pub material: u32,
+    /// Distance along the view axis to the first hit; infinite where the ray escaped.
+    pub depth: f32,
+    /// Where this pixel's first surface (or, for the sky, its direction) was on the previous
+    /// frame's film, minus where it is now, in pixels (zero on the first frame, and where the
+    /// point was behind the previous camera).
+    pub motion: Vec2,
+}
+
+/// Where a camera path goes on after its first hit: what the primary pass hands the lighting
+/// pass for one pixel (kept per band of rows, not for the whole screen).
+#[derive(Debug, Clone)]
+pub struct PrimaryHit {
+    pub ray: Ray,
+    pub first: Option<Vertex>,
+    pub sampler: PixelSampler,
+    pub rng: Rng,
+}
+
+impl Default for GPixel {
+    fn default() -> Self {
+        Self {
+            position: Vec3::ZERO,
+            normal: Vec3::ZERO,
+            albedo: Vec3::ZERO,
+            roughness: 0.0,
+            metallic: 0.0,
+            material: NO_MATERIAL,
+            depth: f32::INFINITY,
+            motion: Vec2::ZERO,
+        }
+    }
+}
+
+impl GPixel {
+    /// True where the camera ray escaped (the environment is seen).
+    pub fn is_sky(&self) -> bool {
+        self.material == NO_MATERIAL
+    }
+}
+
+/// The G-buffer: one [`GPixel`] per pixel, row-major, row 0 at the top.
+#[derive(Debug, Clone, Default)]
+pub struct GBuffer {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<GPixel>,
+}
+
+impl GBuffer {
+    /// Resizes to `width` x `height` (contents undefined until the next pass).
+    pub fn resize(&mut self, width: u32, height: u32) {
+        self.width = width;
+        self.height = height;
+        self.pixels
+            .resize(width as usize * height as usize, GPixel::default());
+    }
+}
+
+/// The primary visibility pass for one pixel: traces sample `index` of pixel (`x`, `y`) to its
+/// first surface. `previous` is the camera of the previous frame (motion vectors). Returns the
+/// G-buffer pixel, the hit for the lighting pass and the rays traced.
+#[inline]
+pub fn primary(
+    tracer: &PathTracer,
+    x: u32,
+    y: u32,
+    index: u32,
+    previous: Option<&Camera>,
+) -> (GPixel, PrimaryHit, u32) {
+    let camera = tracer.camera;
+    let CameraSample {
+        ray,
+        mut rng,
+        sampler,
+    } = tracer.camera_sample(x, y, index);
+    let mut rays = 0;
+    let first = tracer.intersect(ray, &mut rng, &mut rays);
+    let now_and_then = |at: &dyn Fn(&Camera) -> Option<Vec2>| {
+        previous
+            .and_then(|prev| Some(at(prev)? - at(camera)?))
+            .unwrap_or(Vec2::ZERO)
+    };
+    let g = match &first {
+        Some(v) => GPixel {
+            position: v.surface.p,
+            normal: v.surface.ns,
+            albedo: v.shading.params.base_color,
+            roughness: v.shading.params.roughness,
+            metallic: v.shading.params.metallic,
+            material: v.surface.material,
+            depth: v.hit.t * ray.direction.dot(camera.forward()),
+            motion: now_and_then(&|c| c.project(v.surface.p)),
+        },
+        None => GPixel {
+            motion: now_and_then(&|c| c.project_direction(ray.direction)),
+            ..GPixel::default()
+        },
+    };
+    (
+        g,
+        PrimaryHit {
+            ray,
+            first,
+            sampler,
+            rng,
+        },
+        rays,
+    )
+}

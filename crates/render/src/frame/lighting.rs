@@ -1,0 +1,49 @@
+//! The lighting pass: path tracing from the G-buffer. Each pixel's first sample continues from
+//! its G-buffer surface (next event estimation at every vertex, multiple importance sampling,
+//! the configuration's bounce limit); further samples of the frame trace whole paths. Direct
+//! and indirect light are kept apart (seed 001's split), with their running statistics over
+//! the frame's samples, and the first sample's first bounce.
+
+use crate::path::{Bounce, PathTracer};
+
+use super::accumulation::PixelStats;
+use super::gbuffer::PrimaryHit;
+
+/// One pixel's lighting in one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LightSample {
+    /// Statistics of the frame's samples of this pixel.
+    pub stats: PixelStats,
+    /// The first bounce of the frame's first sample.
+    pub bounce: Bounce,
+}
+
+/// The lighting pass for one pixel: `spp` samples, indices `index..index + spp`; sample
+/// `index` continues from `hit` (the primary pass's, same index). Returns the pixel's lighting
+/// and the rays traced.
+#[inline]
+pub fn lighting(
+    tracer: &PathTracer,
+    x: u32,
+    y: u32,
+    hit: PrimaryHit,
+    index: u32,
+    spp: u32,
+) -> (LightSample, u64) {
+    let s = tracer.trace_from(hit.ray, hit.first, hit.sampler, hit.rng);
+    let mut stats = PixelStats::default();
+    stats.add(s.direct, s.indirect);
+    let mut rays = s.rays as u64;
+    for k in 1..spp {
+        let more = tracer.sample_pixel(x, y, index + k);
+        stats.add(more.direct, more.indirect);
+        rays += more.rays as u64;
+    }
+    (
+        LightSample {
+            stats,
+            bounce: s.bounce,
+        },
+        rays,
+    )
+}

@@ -1,0 +1,275 @@
+//! The real-time frame pipeline: still frames accumulate to exactly the reference path
+//! tracer's image, frames do not depend on the thread count, motion vectors match the
+//! analytic image motion of a translating camera, changes reset the history (display settings
+//! do not), and every display mode shows something.
+
+use glam::Vec2;
+use pathlight_render::camera_path::{CameraPath, PathKind};
+use pathlight_render::config::FrameConfig;
+use pathlight_render::frame::display::DisplayMode;
+use pathlight_render::frame::{Pipeline, ACCUMULATE, DISPLAY, LIGHTING, PRIMARY};
+use pathlight_render::renderer::render;
+use pathlight_render::{Config, World};
+
+fn cornell() -> World {
+    World::new(
+        pathlight_scene::load(None, &Default::default()).unwrap(),
+        Default::default(),
+    )
+}
+
+fn config() -> Config {
+    Config {
+        width: 40,
+        height: 30,
+        seed: 7,
+        ..Config::default()
+    }
+}
+
+fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+/// N still frames of one sample are the reference render at N spp, bit for bit: the G-buffer
+/// pass and the lighting pass together trace exactly the reference's paths.
+#[test]
+fn still_frames_accumulate_to_the_reference_render() {
+    let world = cornell();
+    for max_bounces in [None, Some(2)] {
+        let cfg = Config {
+            max_bounces,
+            ..config()
+        };
+        let mut pipeline = Pipeline::new(cfg.clone());
+        for f in 1..=8 {
+            let r = pipeline.render_frame(&world);
+            assert_eq!((r.accumulated, r.spp, r.epoch), (f, f, 0));
+            assert!(r.rays >= 40 * 30, "{} rays", r.rays);
+        }
+        let film = render(
+            &world,
+            &world.camera(&cfg),
+            &Config {
+                spp: 8,
+                ..cfg.clone()
+            },
+        );
+        for (h, p) in pipeline.history.iter().zip(&film.pixels) {
+            assert_eq!(h.n, p.n);
+            assert_eq!(h.direct.mean, p.direct, "{max_bounces:?}");
+            assert_eq!(h.indirect.mean, p.indirect, "{max_bounces:?}");
+            let var = h.variance();
+            assert!(
+                var.abs_diff_eq(p.variance(), 1e-4 * (1.0 + p.variance().max_element())),
+                "{var} vs {}",
+                p.variance()
+            );
+        }
+        // Albedo, normal and depth of the G-buffer are the reference's first-hit features of
+        // the last sample: their means agree with the film's over the whole image.
+        let albedo: f32 = pipeline.gbuffer.pixels.iter().map(|g| g.albedo.x).sum();
+        let film_albedo: f32 = film.pixels.iter().map(|p| p.albedo.x).sum();
+        assert!((albedo - film_albedo).abs() < 0.05 * film_albedo);
+    }
+
+    // Several samples per frame: 4 frames of 2 samples are the same samples as 8 spp (the
+    // statistics merged by batches, so equal up to rounding).
+    let cfg = Config { spp: 2, ..config() };
+    let mut pipeline = Pipeline::new(cfg.clone());
+    for _ in 0..4 {
+        pipeline.render_frame(&world);
+    }
+    let film = render(
+        &world,
+        &world.camera(&cfg),
+        &Config {
+            spp: 8,
+            ..cfg.clone()
+        },
+    );
+    for (h, p) in pipeline.history.iter().zip(&film.pixels) {
+        assert_eq!(h.n, 8);
+        assert!(h
+            .mean()
+            .abs_diff_eq(p.mean, 1e-5 * (1.0 + p.mean.max_element())));
+    }
+}
+
+/// Renders `frames` frames along a short orbit and returns every frame's display bytes and
+/// the final history.
+fn orbit_frames(world: &World, frames: u32) -> (Vec<Vec<u8>>, Vec<glam::Vec3>) {
+    let path = CameraPath {
+        path: PathKind::Orbit,
+        degrees: 20.0,
+        steps: frames - 1,
+        ..CameraPath::default()
+    };
+    let views = world.path_views(&path);
+    let mut pipeline = Pipeline::new(config());
+    let mut shown = Vec::new();
+    for view in views {
+        pipeline.set_config(&Config {
+            camera: view,
+            ..config()
+        });
+        let mut r = pipeline.render_frame(world);
+        pipeline.display(&mut r);
+        shown.push(pipeline.rgba.clone());
+    }
+    (shown, pipeline.image())
+}
+
+#[test]
+fn frames_do_not_depend_on_the_thread_count() {
+    let world = cornell();
+    let one = in_pool(1, || orbit_frames(&world, 4));
+    let two = in_pool(2, || orbit_frames(&world, 4));
+    assert!(one == two, "frames differ between 1 and 2 threads");
+    // Each view has its own noise (a new epoch, a new seed).
+    assert_ne!(one.0[0], one.0[1]);
+}
+
+/// A camera translated by `t` along its right axis: a surface point at depth `z` moves on the
+/// film by `-t f / z` pixels (f = half the height over tan(fov / 2)), so its motion vector
+/// (where it was minus where it is) is `+t f / z` in x and 0 in y.
+#[test]
+fn motion_vectors_match_a_translating_camera() {
+    let world = cornell();
+    let fov = 40.0f32;
+    let at = |x: f32| Config {
+        camera: pathlight_render::config::CameraConfig {
+            look_from: Some([x, 1.0, 3.5]),
+            look_at: Some([x, 1.0, 0.0]),
+            up: Some([0.0, 1.0, 0.0]),
+            fov_y: Some(fov),
+            ..Default::default()
+        },
+        ..config()
+    };
+    let mut pipeline = Pipeline::new(at(0.0));
+    let first = pipeline.render_frame(&world);
+    assert!(pipeline
+        .gbuffer
+        .pixels
+        .iter()
+        .all(|g| g.motion == Vec2::ZERO));
+    let t = 0.1;
+    pipeline.set_config(&at(t));
+    let second = pipeline.render_frame(&world);
+    assert_eq!(second.epoch, first.epoch + 1);
+    let f = 0.5 * 30.0 / (0.5 * fov.to_radians()).tan();
+    let mut checked = 0;
+    for g in pipeline.gbuffer.pixels.iter().filter(|g| !g.is_sky()) {
+        let want = t * f / g.depth;
+        assert!(
+            (g.motion.x - want).abs() < 1e-3 && g.motion.y.abs() < 1e-3,
+            "motion {} at depth {}, want ({want}, 0)",
+            g.motion,
+            g.depth
+        );
+        checked += 1;
+    }
+    assert!(checked > 900, "{checked} pixels checked");
+}
+
+#[test]
+fn changes_reset_the_history_and_display_settings_do_not() {
+    let world = cornell();
+    let mut pipeline = Pipeline::new(config());
+    for _ in 0..3 {
+        pipeline.render_frame(&world);
+    }
+    assert_eq!(pipeline.accumulated(), 3);
+    // Display settings and the frame limit leave the history alone.
+    let mut c = config();
+    c.display.exposure = 2.0;
+    c.display.mode = DisplayMode::Normal;
+    c.frame.max_frames = 100;
+    pipeline.set_config(&c);
+    let r = pipeline.render_frame(&world);
+    assert_eq!((r.accumulated, r.epoch), (4, 0));
+    // Samples per frame do not.
+    c.max_bounces = Some(1);
+    pipeline.set_config(&c);
+    let r = pipeline.render_frame(&world);
+    assert_eq!((r.accumulated, r.epoch), (1, 1));
+    // The frame limit stops tracing; the display pass still runs.
+    c.frame.max_frames = 2;
+    pipeline.set_config(&c);
+    pipeline.render_frame(&world);
+    let mut r = pipeline.render_frame(&world);
+    assert!(!r.traced && r.rays == 0 && r.accumulated == 2);
+    pipeline.display(&mut r);
+    assert_eq!(r.passes.len(), 1);
+    assert_eq!(r.passes[0].pass, DISPLAY);
+    // Without accumulation every frame stands alone, with fresh noise.
+    c.frame = FrameConfig {
+        accumulate: false,
+        max_frames: 0,
+    };
+    pipeline.set_config(&c);
+    let a = pipeline.render_frame(&world);
+    let image_a = pipeline.image();
+    let b = pipeline.render_frame(&world);
+    assert_eq!((a.accumulated, b.accumulated), (1, 1));
+    assert_eq!(b.epoch, a.epoch + 1);
+    assert_ne!(image_a, pipeline.image());
+    let names: Vec<&str> = b.passes.iter().map(|p| p.pass).collect();
+    assert_eq!(names, [PRIMARY, LIGHTING, ACCUMULATE]);
+}
+
+#[test]
+fn every_display_mode_shows_the_box() {
+    let world = cornell();
+    let mut pipeline = Pipeline::new(config());
+    pipeline.render_frame(&world);
+    pipeline.render_frame(&world);
+    for mode in DisplayMode::ALL {
+        let mut c = config();
+        c.display.mode = mode;
+        pipeline.set_config(&c);
+        let mut r = pipeline.render_frame(&world);
+        pipeline.display(&mut r);
+        assert_eq!(pipeline.rgba.len(), 40 * 30 * 4);
+        let distinct: std::collections::HashSet<&[u8]> = pipeline.rgba.chunks(4).collect();
+        // Uniform here: samples (every pixel has as many), metallic (zero in the box), motion
+        // (the camera is still).
+        let uniform = matches!(
+            mode,
+            DisplayMode::Samples | DisplayMode::Metallic | DisplayMode::Motion
+        );
+        // Roughness: the walls' 1 and the open front's sky.
+        let least = if mode == DisplayMode::Roughness { 2 } else { 4 };
+        assert!(
+            uniform || distinct.len() >= least,
+            "{mode:?}: {} distinct colours",
+            distinct.len()
+        );
+    }
+    // The final image: the left wall is red, the right wall green.
+    let mut c = config();
+    c.display.mode = DisplayMode::Final;
+    pipeline.set_config(&c);
+    let mut r = pipeline.render_frame(&world);
+    pipeline.display(&mut r);
+    // Mean colour of a 3x9 block around (x, y) (one noisy pixel could mislead).
+    let block = |x: usize, y: usize| {
+        let mut sum = [0u32; 3];
+        for yy in y - 4..=y + 4 {
+            for xx in x - 1..=x + 1 {
+                for (c, s) in sum.iter_mut().enumerate() {
+                    *s += pipeline.rgba[(yy * 40 + xx) * 4 + c] as u32;
+                }
+            }
+        }
+        sum
+    };
+    let (left, right) = (block(3, 15), block(36, 15));
+    assert!(left[0] > 2 * left[1], "left wall {left:?}");
+    assert!(2 * right[1] > 3 * right[0], "right wall {right:?}");
+}

@@ -1,0 +1,222 @@
+//! The side panel: timings, the display, the camera, and a section per pass with its switch
+//! and parameters.
+
+use eframe::egui;
+use pathlight_render::bsdf::Microfacet;
+use pathlight_render::config::Tonemap;
+use pathlight_render::frame::display::DisplayMode;
+use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY};
+use pathlight_render::light::LightSelection;
+use pathlight_render::sampler::SamplerKind;
+
+use crate::navigation::Mode;
+use crate::{Viewer, SHORTCUTS};
+
+pub fn show(v: &mut Viewer, ui: &mut egui::Ui) {
+    ui.heading("pathlight");
+    timings(v, ui);
+    ui.separator();
+    egui::CollapsingHeader::new("Display")
+        .default_open(true)
+        .show(ui, |ui| display(v, ui));
+    egui::CollapsingHeader::new("Camera")
+        .default_open(true)
+        .show(ui, |ui| camera(v, ui));
+    egui::CollapsingHeader::new("Passes")
+        .default_open(true)
+        .show(ui, |ui| passes(v, ui));
+    egui::CollapsingHeader::new("Keys").show(ui, |ui| {
+        egui::Grid::new("keys").striped(true).show(ui, |ui| {
+            for (k, what) in SHORTCUTS {
+                ui.monospace(*k);
+                ui.label(*what);
+                ui.end_row();
+            }
+        });
+    });
+    if !v.message.is_empty() {
+        ui.separator();
+        ui.label(&v.message);
+    }
+}
+
+fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
+    let Some((report, w, h)) = &v.shown else {
+        ui.label("rendering the first frame...");
+        return;
+    };
+    ui.label(format!(
+        "{w} x {h}   {:.1} fps   {:.1} ms per frame",
+        v.fps, report.ms
+    ));
+    ui.label(format!(
+        "{} frames accumulated, {} spp   {:.1} Mrays/s",
+        report.accumulated,
+        report.spp,
+        if report.ms > 0.0 {
+            report.rays as f64 / (report.ms * 1e3)
+        } else {
+            0.0
+        }
+    ));
+    let total = report.ms.max(1e-6);
+    egui::Grid::new("passes").show(ui, |ui| {
+        for p in &report.passes {
+            ui.label(p.pass);
+            ui.monospace(format!("{:7.2} ms", p.ms));
+            ui.add(
+                egui::ProgressBar::new((p.ms / total) as f32)
+                    .desired_width(100.0)
+                    .desired_height(8.0),
+            );
+            ui.end_row();
+        }
+    });
+    ui.horizontal(|ui| {
+        let label = if v.paused { "Resume" } else { "Pause" };
+        if ui.button(label).clicked() {
+            v.set_paused(!v.paused);
+        }
+        if ui.button("Restart").clicked() {
+            v.worker.reset();
+        }
+        if ui.button("Save PNG").clicked() {
+            v.save_screenshot();
+        }
+    });
+}
+
+fn display(v: &mut Viewer, ui: &mut egui::Ui) {
+    let d = &mut v.config.display;
+    egui::ComboBox::from_label("mode")
+        .selected_text(format!("{} ({})", d.mode.name(), d.mode.pass()))
+        .show_ui(ui, |ui| {
+            for pass in [ACCUMULATE, LIGHTING, PRIMARY] {
+                ui.label(egui::RichText::new(pass).strong());
+                for m in DisplayMode::ALL.into_iter().filter(|m| m.pass() == pass) {
+                    ui.selectable_value(&mut d.mode, m, m.name());
+                }
+            }
+        });
+    let mut stops = d.exposure.max(1e-6).log2();
+    if ui
+        .add(egui::Slider::new(&mut stops, -10.0..=10.0).text("exposure (stops)"))
+        .changed()
+    {
+        d.exposure = stops.exp2();
+    }
+    egui::ComboBox::from_label("tone map")
+        .selected_text(format!("{:?}", d.tonemap))
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut d.tonemap, Tonemap::Clamp, "clamp");
+            ui.selectable_value(&mut d.tonemap, Tonemap::Aces, "ACES");
+        });
+    ui.add(
+        egui::Slider::new(&mut v.scale, 0.1..=2.0)
+            .logarithmic(true)
+            .text("resolution scale"),
+    );
+}
+
+fn camera(v: &mut Viewer, ui: &mut egui::Ui) {
+    let n = &mut v.navigation;
+    ui.horizontal(|ui| {
+        ui.radio_value(&mut n.mode, Mode::Orbit, "orbit");
+        ui.radio_value(&mut n.mode, Mode::Fly, "fly");
+        if ui.button("Home").clicked() {
+            n.home();
+        }
+    });
+    ui.add(
+        egui::Slider::new(&mut n.speed, 1e-3..=1e4)
+            .logarithmic(true)
+            .text("fly speed (units/s)"),
+    );
+    ui.add(egui::Slider::new(&mut n.fov_y, 5.0..=150.0).text("field of view"));
+    let c = &mut v.config.camera;
+    ui.add(
+        egui::Slider::new(&mut c.lens_radius, 0.0..=1.0)
+            .logarithmic(true)
+            .text("lens radius"),
+    );
+    let mut auto = c.focus_distance.is_none();
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut auto, "autofocus");
+        if !auto {
+            let mut d = c.focus_distance.unwrap_or(1.0);
+            ui.add(
+                egui::Slider::new(&mut d, 1e-2..=1e3)
+                    .logarithmic(true)
+                    .text("focus"),
+            );
+            c.focus_distance = Some(d);
+        } else {
+            c.focus_distance = None;
+        }
+    });
+    let p = n.position;
+    ui.label(format!(
+        "at ({:.2}, {:.2}, {:.2}), target {:.2} ahead",
+        p.x, p.y, p.z, n.distance
+    ));
+}
+
+fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
+    let c = &mut v.config;
+    ui.label(egui::RichText::new(PRIMARY).strong());
+    ui.label("camera rays to the G-buffer: position, normal, albedo, roughness, metallic, material, depth, motion");
+    ui.separator();
+
+    ui.label(egui::RichText::new(LIGHTING).strong());
+    ui.add(egui::Slider::new(&mut c.spp, 1..=64).text("samples per pixel per frame"));
+    let mut unlimited = c.max_bounces.is_none();
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut unlimited, "unlimited bounces");
+        if unlimited {
+            c.max_bounces = None;
+        } else {
+            let mut b = c.max_bounces.unwrap_or(2);
+            ui.add(egui::Slider::new(&mut b, 0..=32).text("bounces"));
+            c.max_bounces = Some(b);
+        }
+    });
+    ui.add(egui::Slider::new(&mut c.rr_start, 1..=32).text("Russian roulette from bounce"));
+    egui::ComboBox::from_label("sampler")
+        .selected_text(format!("{:?}", c.sampler))
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut c.sampler, SamplerKind::Sobol, "Sobol (Owen)");
+            ui.selectable_value(&mut c.sampler, SamplerKind::Independent, "independent");
+        });
+    egui::ComboBox::from_label("glossy lobes")
+        .selected_text(format!("{:?}", c.microfacet))
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut c.microfacet, Microfacet::Ggx, "GGX");
+            ui.selectable_value(&mut c.microfacet, Microfacet::Beckmann, "Beckmann");
+        });
+    egui::ComboBox::from_label("light selection")
+        .selected_text(format!("{:?}", c.light_selection))
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut c.light_selection, LightSelection::Power, "by power");
+            ui.selectable_value(&mut c.light_selection, LightSelection::Uniform, "uniform");
+        });
+    ui.horizontal(|ui| {
+        ui.label("seed");
+        ui.add(egui::DragValue::new(&mut c.seed));
+    });
+    ui.separator();
+
+    ui.label(egui::RichText::new(ACCUMULATE).strong());
+    ui.checkbox(
+        &mut c.frame.accumulate,
+        "accumulate while the camera is still",
+    );
+    ui.add(
+        egui::Slider::new(&mut c.frame.max_frames, 0..=65536)
+            .logarithmic(true)
+            .text("stop after frames (0: never)"),
+    );
+    ui.separator();
+
+    ui.label(egui::RichText::new(DISPLAY).strong());
+    ui.label("tone mapping and display modes: see Display above");
+}
