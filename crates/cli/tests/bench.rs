@@ -113,3 +113,41 @@ fn bench_rays_table_and_backend_choice() {
         );
     }
 }
+
+/// `bench frame --json`: the last line has the median frame time, Mrays/s and each pass.
+#[test]
+fn bench_frame_json_on_the_cornell_box() {
+    let out = pathlight(&[
+        "bench", "frame", "--width", "64", "--height", "36", "--frames", "3", "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let last = stdout(&out).lines().last().unwrap().to_owned();
+    let v: Value = serde_json::from_str(&last).unwrap();
+    for key in [
+        "ms_per_frame",
+        "fps",
+        "mrays_per_s",
+        "rays_per_frame",
+        "setup_ms",
+    ] {
+        assert!(v[key].as_f64().unwrap() > 0.0, "{key} in {last}");
+    }
+    assert_eq!(v["frames"], 3);
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(64), Some(36))
+    );
+    // The default real-time configuration: one sample, two bounces.
+    assert_eq!(
+        (v["spp"].as_u64(), v["max_bounces"].as_u64()),
+        (Some(1), Some(2))
+    );
+    for pass in ["primary", "lighting", "accumulate", "display"] {
+        assert!(
+            v["passes"][pass].as_f64().unwrap() >= 0.0,
+            "{pass} in {last}"
+        );
+    }
+    // At least a camera ray per pixel.
+    assert!(v["rays_per_frame"].as_f64().unwrap() >= 64.0 * 36.0 * 0.5);
+}

@@ -23,10 +23,13 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// The acceptance test: `pathlight eval experiments/convergence.toml --out DIR`.
-/// With independent random samples the expected MSE is exactly variance/spp, so the log-log
-/// slope is -1; the measured one must be within 10% (the reference's own noise, 1/8 of the
-/// MSE at 256 spp, flattens it by about 0.02). The reference is rendered afresh (empty cache).
+/// The acceptance test of the evaluation harness and of the frame pipeline's accumulation:
+/// `pathlight eval experiments/convergence.toml --out DIR` renders the Cornell box through the
+/// real-time pipeline, one sample per pixel per frame, with a still camera, so the budgets of
+/// 1 to 256 spp are 1 to 256 accumulated frames. With independent random samples the expected
+/// MSE against the reference is exactly variance/frames, so the log-log slope is -1; the
+/// measured one must be within 10% (the reference's own noise, at most 1/8 of the MSE at 256
+/// frames, flattens it by about 0.02). The reference is rendered afresh (empty cache).
 #[test]
 fn convergence_experiment_shows_mse_falling_as_one_over_spp() {
     let dir = temp_dir("convergence");

@@ -1,7 +1,8 @@
-//! Shared foundations of pathlight: maths (re-exported from `glam`), colour and
+//! Shared foundations of pathlight: maths (re-exported from `glam`, fast trigonometry), colour and
 //! deterministic random numbers.
 
 pub mod color;
+pub mod math;
 pub mod rng;
 
 pub use glam;

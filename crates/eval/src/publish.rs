@@ -381,6 +381,14 @@ fn stages(results: &Results, out: &Path) -> Result<Section, EvalError> {
                 }
             }
         }
+        // Bottom to top in the order a frame runs its passes.
+        let order = |name: &str| {
+            pathlight_render::frame::PASSES
+                .iter()
+                .position(|p| *p == name)
+                .unwrap_or(usize::MAX)
+        };
+        parts.sort_by_key(|p| order(&p.0));
         stacks.push(Stack {
             label: c.name.clone(),
             parts,

@@ -25,6 +25,9 @@ pub struct Distribution2D {
     conditional: Vec<f32>,
     /// `height + 1` entries: the CDF over rows, from 0 to 1.
     marginal: Vec<f32>,
+    /// Guide tables (see [`build_guide`]): one per row, then the marginal's.
+    conditional_guide: Vec<u32>,
+    marginal_guide: Vec<u32>,
 }
 
 /// Normalised running sums of `weights` into `cdf` (`weights.len() + 1` entries, from 0 to
@@ -49,17 +52,47 @@ fn build_cdf(weights: impl Iterator<Item = f64> + Clone, cdf: &mut [f32]) -> f64
     total
 }
 
+/// Cells of a CDF per entry of its guide table.
+const GUIDE_STRIDE: usize = 4;
+
+/// The guide table of `cdf` (n + 1 entries): for each of `ceil(n / GUIDE_STRIDE)` equal
+/// buckets of [0, 1), the cell where inversion of the bucket's lower end lands (Chen and Asau's
+/// cutpoint method). Inversion then starts there and scans a few cells instead of a binary
+/// search over the whole CDF, which for an environment map is a chain of cache misses.
+fn build_guide(cdf: &[f32], guide: &mut [u32]) {
+    let n = cdf.len() - 1;
+    let k = guide.len();
+    for (b, g) in guide.iter_mut().enumerate() {
+        let t = b as f32 / k as f32;
+        *g = cdf[1..n].partition_point(|&c| c <= t) as u32;
+    }
+}
+
+fn guide_len(n: usize) -> usize {
+    n.div_ceil(GUIDE_STRIDE).max(1)
+}
+
 /// Inverts `cdf` (n + 1 entries from 0 to 1) at `u`: the cell i with cdf[i] <= u < cdf[i+1]
 /// (never one of zero probability), its probability and the offset in [0, 1) within it.
+/// `guide` is `cdf`'s guide table: the result is exactly that of a binary search.
 #[inline]
-fn invert(cdf: &[f32], u: f32) -> (usize, f32, f32) {
+fn invert(cdf: &[f32], guide: &[u32], u: f32) -> (usize, f32, f32) {
     let n = cdf.len() - 1;
     let u = if u.is_nan() {
         0.0
     } else {
         u.clamp(0.0, ONE_MINUS_EPSILON)
     };
-    let i = cdf[1..n].partition_point(|&c| c <= u);
+    // The number of entries of cdf[1..n] that are <= u, found from the bucket's start (which
+    // rounding may have put one cell too far either way).
+    let bucket = ((u * guide.len() as f32) as usize).min(guide.len() - 1);
+    let mut i = guide[bucket] as usize;
+    while i > 0 && cdf[i] > u {
+        i -= 1;
+    }
+    while i < n - 1 && cdf[i + 1] <= u {
+        i += 1;
+    }
     let (lo, hi) = (cdf[i], cdf[i + 1]);
     let p = hi - lo;
     let offset = ((u - lo) / p).clamp(0.0, ONE_MINUS_EPSILON);
@@ -118,11 +151,23 @@ impl Distribution2D {
         if !(total > 0.0 && total.is_finite()) {
             return None;
         }
+        let row_guide = guide_len(width);
+        let mut conditional_guide = vec![0u32; height * row_guide];
+        for (cdf, guide) in conditional
+            .chunks_exact(width + 1)
+            .zip(conditional_guide.chunks_exact_mut(row_guide))
+        {
+            build_guide(cdf, guide);
+        }
+        let mut marginal_guide = vec![0u32; guide_len(height)];
+        build_guide(&marginal, &mut marginal_guide);
         Some(Self {
             width,
             height,
             conditional,
             marginal,
+            conditional_guide,
+            marginal_guide,
         })
     }
 
@@ -144,8 +189,13 @@ impl Distribution2D {
     /// Inputs outside [0, 1) are clamped into it.
     #[inline]
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
-        let (y, py, oy) = invert(&self.marginal, u.y);
-        let (x, px, ox) = invert(self.row(y), u.x);
+        let (y, py, oy) = invert(&self.marginal, &self.marginal_guide, u.y);
+        let g = guide_len(self.width);
+        let (x, px, ox) = invert(
+            self.row(y),
+            &self.conditional_guide[y * g..(y + 1) * g],
+            u.x,
+        );
         let p = Vec2::new(place(x, ox, self.width), place(y, oy, self.height));
         (p, px * py * (self.width * self.height) as f32)
     }
@@ -168,6 +218,33 @@ mod tests {
     use super::*;
     use crate::alias::{chi2, chi2_critical};
     use pathlight_core::rng::Rng;
+
+    /// The guide table finds exactly the cell a binary search finds, zero cells included.
+    #[test]
+    fn guided_inversion_equals_binary_search() {
+        let mut rng = Rng::new(11, 3);
+        for n in [1usize, 2, 3, 7, 64, 1000] {
+            let weights = random_weights(n, 1, n as u64);
+            let mut cdf = vec![0.0f32; n + 1];
+            build_cdf(weights.iter().map(|&w| w as f64), &mut cdf);
+            let mut guide = vec![0u32; guide_len(n)];
+            build_guide(&cdf, &mut guide);
+            let mut us: Vec<f32> = (0..5000).map(|_| rng.next_f32()).collect();
+            us.extend(cdf.iter().copied());
+            us.extend(cdf.iter().map(|c| c.next_down().max(0.0)));
+            us.extend([0.0, ONE_MINUS_EPSILON, 1.0, f32::NAN]);
+            for u in us {
+                let got = invert(&cdf, &guide, u);
+                let uc = if u.is_nan() {
+                    0.0
+                } else {
+                    u.clamp(0.0, ONE_MINUS_EPSILON)
+                };
+                let want = cdf[1..n].partition_point(|&c| c <= uc);
+                assert_eq!(got.0, want, "n {n} u {u}");
+            }
+        }
+    }
 
     fn random_weights(w: usize, h: usize, seed: u64) -> Vec<f32> {
         let mut rng = Rng::new(seed, 9);

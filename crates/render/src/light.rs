@@ -500,14 +500,15 @@ impl Lights {
         let light = self.environment.as_ref()?;
         let (uv, _) = light.distribution.as_ref()?.sample(u);
         let wi = light.env.uv_to_direction(uv);
-        // The density and radiance of the direction itself, as `pdf_environment` and
-        // `environment_radiance` find them: the same texel, bit for bit.
-        let pdf = environment_pdf(light, wi);
+        // The density and radiance of the direction itself, as `environment` finds them for a
+        // ray that escapes that way: the same texel, bit for bit (so that the MIS weights of
+        // the two strategies agree exactly).
+        let uv = light.env.direction_to_uv(wi);
         Some(LightSample {
             wi,
             distance: f32::INFINITY,
-            radiance: light.env.radiance(wi),
-            pdf: select * pdf,
+            radiance: light.env.radiance_at_uv(uv),
+            pdf: select * environment_pdf_uv(light, uv),
             delta: false,
         })
     }
@@ -553,22 +554,29 @@ impl Lights {
 
     /// Radiance of the environment along `dir` (toward the sky); zero without one.
     pub fn environment_radiance(&self, dir: Vec3) -> Vec3 {
-        self.environment
-            .as_ref()
-            .map_or(Vec3::ZERO, |l| l.env.radiance(dir))
+        self.environment(dir).0
     }
 
     /// The solid-angle density (selection included) of sampling environment direction `dir`
     /// (unit length).
     pub fn pdf_environment(&self, dir: Vec3) -> f32 {
+        self.environment(dir).1
+    }
+
+    /// The environment's radiance from direction `dir` (unit length) and the solid-angle
+    /// density (selection included) of sampling it, from one lookup.
+    pub fn environment(&self, dir: Vec3) -> (Vec3, f32) {
         let Some(light) = &self.environment else {
-            return 0.0;
+            return (Vec3::ZERO, 0.0);
         };
+        let uv = light.env.direction_to_uv(dir);
         let select = self.selection_pmf(self.count - 1);
-        if select == 0.0 {
-            return 0.0;
-        }
-        select * environment_pdf(light, dir)
+        let pdf = if select == 0.0 {
+            0.0
+        } else {
+            select * environment_pdf_uv(light, uv)
+        };
+        (light.env.radiance_at_uv(uv), pdf)
     }
 }
 
@@ -591,11 +599,10 @@ fn solid_angle(t: &TriangleLight, p: Vec3, q: Vec3) -> Option<(Vec3, f32, f32)> 
 
 /// Solid-angle density (without selection) of environment direction `dir`.
 #[inline]
-fn environment_pdf(light: &EnvironmentLight, dir: Vec3) -> f32 {
+fn environment_pdf_uv(light: &EnvironmentLight, uv: Vec2) -> f32 {
     let Some(d) = &light.distribution else {
         return 0.0;
     };
-    let uv = light.env.direction_to_uv(dir);
     let sin_theta = (uv.y * PI).sin();
     if sin_theta.is_nan() || sin_theta <= 0.0 {
         return 0.0;

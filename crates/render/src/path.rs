@@ -143,7 +143,7 @@ impl PathTracer<'_> {
         } = self.camera_sample(x, y, index);
         let mut rays = 0;
         let first = self.intersect(ray, &mut rng, &mut rays);
-        let mut out = self.trace_from(ray, first, sampler, rng);
+        let mut out = self.trace_from(ray, first.as_ref(), sampler, rng);
         out.rays += rays;
         out
     }
@@ -240,7 +240,7 @@ impl PathTracer<'_> {
     pub fn trace_from(
         &self,
         mut ray: Ray,
-        first: Option<Vertex>,
+        first: Option<&Vertex>,
         mut sampler: PixelSampler,
         mut rng: Rng,
     ) -> PathSample {
@@ -256,28 +256,31 @@ impl PathTracer<'_> {
         let mut prev_p = ray.origin;
         // Absorption of the volume the ray travels through.
         let mut sigma_a = Vec3::ZERO;
-        let mut first = Some(first);
+        // The vertex found by the current bounce's ray (the first one is given).
+        let mut next: Option<Vertex>;
         // The first non-specular vertex after the first hit has given its albedo.
         let mut bounce_albedo_found = false;
         for bounce in 0..MAX_PATH_VERTICES {
             sampler.set_dimension(CAMERA_DIMENSIONS + bounce * VERTEX_DIMENSIONS);
-            let found = match first.take() {
-                Some(v) => v,
-                None => self.intersect(ray, &mut rng, &mut out.rays),
+            let found = if bounce == 0 {
+                first
+            } else {
+                next = self.intersect(ray, &mut rng, &mut out.rays);
+                next.as_ref()
             };
-            let Some(Vertex {
+            let Some(&Vertex {
                 hit,
-                surface,
-                shading,
+                ref surface,
+                ref shading,
             }) = found
             else {
                 // Escaped: the environment.
-                let le = lights.environment_radiance(ray.direction);
+                let (le, env_pdf) = lights.environment(ray.direction);
                 if le != Vec3::ZERO {
                     let w = if bounce == 0 || specular_bounce {
                         1.0
                     } else {
-                        power_heuristic(prev_pdf, lights.pdf_environment(ray.direction))
+                        power_heuristic(prev_pdf, env_pdf)
                     };
                     add(&mut out, bounce.saturating_sub(1), beta * le * w);
                 }

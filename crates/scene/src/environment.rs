@@ -136,8 +136,9 @@ impl Environment {
 
     /// The image coordinate in [0,1]^2 seen in world direction `dir` (unit length).
     pub fn direction_to_uv(&self, dir: Vec3) -> Vec2 {
-        let phi = dir.x.atan2(-dir.z) - self.rotation;
-        let theta = dir.y.clamp(-1.0, 1.0).acos();
+        // Fast approximations (error under 2e-6 radians, far below a texel).
+        let phi = pathlight_core::math::fast_atan2(dir.x, -dir.z) - self.rotation;
+        let theta = pathlight_core::math::fast_acos(dir.y);
         Vec2::new((0.5 + phi / (2.0 * PI)).rem_euclid(1.0), theta / PI)
     }
 
@@ -152,7 +153,11 @@ impl Environment {
 
     /// Radiance arriving from direction `dir` (nearest texel, times `intensity`).
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
-        let uv = self.direction_to_uv(dir);
+        self.radiance_at_uv(self.direction_to_uv(dir))
+    }
+
+    /// Radiance at image coordinate `uv` (nearest texel, times `intensity`).
+    pub fn radiance_at_uv(&self, uv: Vec2) -> Vec3 {
         let x = ((uv.x * self.width as f32) as u32).min(self.width - 1);
         let y = ((uv.y * self.height as f32) as u32).min(self.height - 1);
         self.texels[(y * self.width + x) as usize] * self.intensity

@@ -26,11 +26,16 @@ pub fn lighting(
     tracer: &PathTracer,
     x: u32,
     y: u32,
-    hit: PrimaryHit,
+    hit: &PrimaryHit,
     index: u32,
     spp: u32,
 ) -> (LightSample, u64) {
-    let s = tracer.trace_from(hit.ray, hit.first, hit.sampler, hit.rng);
+    let s = tracer.trace_from(
+        hit.ray,
+        hit.first.as_ref(),
+        hit.sampler.clone(),
+        hit.rng.clone(),
+    );
     let mut stats = PixelStats::default();
     stats.add(s.direct, s.indirect);
     let mut rays = s.rays as u64;

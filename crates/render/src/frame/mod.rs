@@ -45,6 +45,8 @@ pub const PRIMARY: &str = "primary";
 pub const LIGHTING: &str = "lighting";
 pub const ACCUMULATE: &str = "accumulate";
 pub const DISPLAY: &str = "display";
+/// Every pass, in the order a frame runs them.
+pub const PASSES: [&str; 4] = [PRIMARY, LIGHTING, ACCUMULATE, DISPLAY];
 
 /// Pixels per parallel task: a run of pixels in row-major order, small enough that its first
 /// hits stay in the L1/L2 cache between the primary and the lighting pass.
@@ -327,7 +329,7 @@ fn trace(
                     rays += r as u64;
                 }
                 let t1 = Instant::now();
-                for (i, (l, hit)) in lpixels.iter_mut().zip(hits.drain(..)).enumerate() {
+                for (i, (l, hit)) in lpixels.iter_mut().zip(hits.iter()).enumerate() {
                     let (x, y) = at(i);
                     let (sample, r) = lighting::lighting(tracer, x, y, hit, index, spp);
                     *l = sample;
