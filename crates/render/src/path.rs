@@ -345,7 +345,7 @@ impl PathTracer<'_> {
                         && f != Vec3::ZERO
                         && (same_side || shading.params.transmission > 0.0)
                     {
-                        let tr = self.transmittance(&surface, ls.wi, ls.distance, &mut out.rays);
+                        let tr = self.transmittance(surface, ls.wi, ls.distance, &mut out.rays);
                         if tr > 0.0 {
                             let w = if ls.delta || last {
                                 1.0
