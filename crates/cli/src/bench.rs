@@ -573,6 +573,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
                 "mrays_per_s": summary.mrays_per_s,
                 "rays_per_frame": rays as f64 / args.frames as f64,
                 "passes": summary.passes_json(),
+                "peak_rss_bytes": crate::memory::peak_rss_bytes(),
             })
         );
     } else {

@@ -112,6 +112,8 @@ fn the_viewer_window_shows_the_rendered_image() {
                 "view",
                 "--window",
                 "900x560",
+                "--scale",
+                "1",
                 "--exit-after-frames",
                 "4",
                 "--close-after",

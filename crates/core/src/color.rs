@@ -62,16 +62,36 @@ fn srgb8_thresholds() -> &'static [f32; 255] {
     })
 }
 
+/// For every value of the top 16 bits of a float in [0, 1): the code of the smallest value with
+/// those bits. A bucket spans less than a code step above 1/256 and about one code below, so
+/// encoding starts here and steps up at most a couple of thresholds.
+fn srgb8_buckets() -> &'static [u8] {
+    static TABLE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        (0..=(1f32.to_bits() >> 16))
+            .map(|b| linear_to_srgb8_formula(f32::from_bits(b << 16)))
+            .collect()
+    })
+}
+
 /// Encodes a linear value as an 8-bit sRGB code value (rounded to nearest; clamped to [0, 1],
-/// NaN as 0). A binary search over the 255 code thresholds: the same result as evaluating the
-/// transfer function, without a `powf` per value.
+/// NaN as 0): the code of the value's bucket, then the code thresholds above it. The same
+/// result as evaluating the transfer function, without a `powf` per value.
 #[inline]
 pub fn linear_to_srgb8(c: f32) -> u8 {
-    // Zero, negative and NaN all encode as 0.
+    // Zero, negative and NaN all encode as 0; 1 and above as 255.
     if c.is_nan() || c <= 0.0 {
         return 0;
     }
-    srgb8_thresholds().partition_point(|&t| t <= c) as u8
+    if c >= 1.0 {
+        return 255;
+    }
+    let thresholds = srgb8_thresholds();
+    let mut code = srgb8_buckets()[(c.to_bits() >> 16) as usize];
+    while code < 255 && c >= thresholds[code as usize] {
+        code += 1;
+    }
+    code
 }
 
 /// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).

@@ -16,7 +16,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use pathlight_core::rng::hash;
 use pathlight_render::config::MAX_SPP;
 use pathlight_render::frame::{FrameReport, Pipeline};
-use pathlight_render::light::LightSelection;
 use pathlight_render::{Config, World};
 
 use crate::image::Image;
@@ -57,23 +56,6 @@ pub struct Runner<'a> {
     pub cancel: &'a AtomicBool,
 }
 
-/// One world per light selection a configuration asks for (the light sampler is built with
-/// the world).
-struct Worlds {
-    worlds: Vec<(LightSelection, World)>,
-}
-
-impl Worlds {
-    fn get(&mut self, selection: LightSelection) -> &World {
-        if let Some(i) = self.worlds.iter().position(|(s, _)| *s == selection) {
-            return &self.worlds[i].1;
-        }
-        let scene = self.worlds[0].1.scene.clone();
-        self.worlds.push((selection, World::new(scene, selection)));
-        &self.worlds.last().expect("just pushed").1
-    }
-}
-
 impl Runner<'_> {
     /// Runs the whole experiment. When cancelled, returns what was measured so far with
     /// `complete: false`.
@@ -101,10 +83,9 @@ impl Runner<'_> {
             ),
         )?;
         let first = spec.reference.config.light_selection;
-        let mut worlds = Worlds {
-            worlds: vec![(first, World::new(scene, first))],
-        };
-        let views = worlds.get(first).path_views(&spec.camera);
+        // One world; its light sampler follows each configuration's light selection.
+        let mut world = World::new(scene, first);
+        let views = world.path_views(&spec.camera);
         let measured = spec.measured_views(views.len());
         let mut results = Results {
             spec: spec.clone(),
@@ -121,7 +102,8 @@ impl Runner<'_> {
         for &v in &measured {
             let config = spec.reference_config(&views[v]);
             let task = format!("reference, view {}/{}", v + 1, views.len());
-            let world = worlds.get(config.light_selection);
+            world.set_light_selection(config.light_selection);
+            let world = &world;
             let found = self.cache.get_or_render(
                 &identity,
                 world,
@@ -152,7 +134,8 @@ impl Runner<'_> {
             images: Vec::new(),
         };
         for c in &spec.configurations {
-            let world = worlds.get(c.config.light_selection);
+            world.set_light_selection(c.config.light_selection);
+            let world = &world;
             for rep in 0..spec.repetitions {
                 let seed = if rep == 0 {
                     c.config.seed

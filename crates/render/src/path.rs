@@ -158,7 +158,12 @@ impl PathTracer<'_> {
         CameraSample {
             ray: self.camera.primary_ray(film, lens),
             sampler,
-            rng: self.pixel_rng(x, y, index),
+            // Only cut-out (alpha) surfaces draw from this stream: without any, skip hashing.
+            rng: if self.world.has_alpha {
+                self.pixel_rng(x, y, index)
+            } else {
+                Rng::new(0, 0)
+            },
         }
     }
 
@@ -340,7 +345,8 @@ impl PathTracer<'_> {
                     let wi_local = surface.to_local(ls.wi);
                     // Reflection needs both directions on the same geometric side.
                     let same_side = ls.wi.dot(surface.ng) * wo.dot(surface.ng) > 0.0;
-                    let f = bsdf.eval(wo_local, wi_local) * wi_local.z.abs();
+                    let (f, bsdf_pdf) = bsdf.eval_pdf(wo_local, wi_local);
+                    let f = f * wi_local.z.abs();
                     if ls.pdf > 0.0
                         && f != Vec3::ZERO
                         && (same_side || shading.params.transmission > 0.0)
@@ -350,7 +356,7 @@ impl PathTracer<'_> {
                             let w = if ls.delta || last {
                                 1.0
                             } else {
-                                power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local))
+                                power_heuristic(ls.pdf, bsdf_pdf)
                             };
                             add(&mut out, bounce, beta * f * ls.radiance * (tr * w / ls.pdf));
                         }

@@ -172,6 +172,9 @@ pub struct Bsdf {
     /// The transmission lobe is a delta.
     trans_delta: bool,
     ior: f32,
+    /// Only the diffuse lobe, without a specular layer (Fresnel 0): exactly Lambertian, with
+    /// a short path through eval and sample (the same values as the general one).
+    lambertian: bool,
 }
 
 /// Per-`wo` quantities shared by eval, pdf and sample.
@@ -200,6 +203,14 @@ enum Lobe {
     Reflection,
     Diffuse,
     Transmission,
+}
+
+/// A cosine-distributed direction about +Z (`sign` 1) or -Z (`sign` -1), from `u` in [0,1)^2.
+#[inline]
+fn cosine_direction(u: Vec2, sign: f32) -> Vec3 {
+    let r = u.x.sqrt();
+    let (s, c) = (TAU * u.y).sin_cos();
+    Vec3::new(r * c, r * s, (1.0 - u.x).sqrt() * sign)
 }
 
 /// `x > 0`, false for NaN.
@@ -257,7 +268,21 @@ impl Bsdf {
             refracts,
             trans_delta: smooth || (refracts && (ior - 1.0).abs() < 1e-3),
             ior,
+            lambertian: !(metallic > 0.0 || specular > 0.0) && w_trans == 0.0 && diffuse_norm > 0.0,
         }
+    }
+
+    /// [`eval_pdf`](Self::eval_pdf) of a Lambertian BSDF: `base * diffuse_norm / pi` and the
+    /// cosine density on `wo`'s side, nothing on the other.
+    #[inline]
+    fn lambertian_eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z == 0.0 || !wo.z.is_finite() || wi.z == 0.0 || wo.z * wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        (
+            self.base * (self.diffuse_norm * FRAC_1_PI),
+            wi.z.abs() * FRAC_1_PI,
+        )
     }
 
     pub fn params(&self) -> &BsdfParams {
@@ -450,6 +475,9 @@ impl Bsdf {
     /// sampling with MIS needs).
     #[inline]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if self.lambertian {
+            return self.lambertian_eval_pdf(wo, wi);
+        }
         match self.lobes(wo) {
             Some(lo) => self.eval_pdf_lobes(&lo, wo, wi),
             None => (Vec3::ZERO, 0.0),
@@ -458,6 +486,20 @@ impl Bsdf {
 
     /// Samples a direction: `u_lobe` picks a lobe, `u` the direction within it.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        if self.lambertian {
+            if wo.z == 0.0 || !wo.z.is_finite() {
+                return None;
+            }
+            let wi = cosine_direction(u, wo.z.signum());
+            let (f, pdf) = self.lambertian_eval_pdf(wo, wi);
+            return (positive(pdf) && pdf.is_finite()).then_some(BsdfSample {
+                wi,
+                f,
+                pdf,
+                delta: false,
+                transmitted: false,
+            });
+        }
         let lo = self.lobes(wo)?;
         let lobe = if u_lobe < lo.p_r {
             Lobe::Reflection
@@ -492,11 +534,7 @@ impl Bsdf {
                 }
                 wi
             }
-            Lobe::Diffuse => {
-                let r = u.x.sqrt();
-                let (s, c) = (TAU * u.y).sin_cos();
-                Vec3::new(r * c, r * s, (1.0 - u.x).sqrt() * lo.sign)
-            }
+            Lobe::Diffuse => cosine_direction(u, lo.sign),
             Lobe::Transmission => {
                 if self.trans_delta {
                     let (wi, scale) = if self.refracts {

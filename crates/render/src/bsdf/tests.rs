@@ -874,3 +874,33 @@ fn delta_classification() {
     assert!(!Bsdf::new(&metal(Microfacet::Beckmann, 0.05, Vec3::ONE)).is_delta());
     assert!(Bsdf::new(&metal(Microfacet::Beckmann, 0.03, Vec3::ONE)).is_delta());
 }
+
+/// The Lambertian short path gives exactly the general path's values and samples.
+#[test]
+fn lambertian_short_path_equals_the_general_one() {
+    let mut rng = pathlight_core::rng::Rng::new(17, 4);
+    for albedo in [Vec3::ONE, Vec3::new(0.7, 0.2, 0.05)] {
+        let fast = Bsdf::new(&BsdfParams::lambertian(albedo));
+        assert!(fast.lambertian);
+        let mut general = fast;
+        general.lambertian = false;
+        for _ in 0..2000 {
+            let dir = |rng: &mut pathlight_core::rng::Rng| {
+                let z = rng.next_f32() * 2.0 - 1.0;
+                let phi = rng.next_f32() * std::f32::consts::TAU;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                Vec3::new(r * phi.cos(), r * phi.sin(), z)
+            };
+            let (wo, wi) = (dir(&mut rng), dir(&mut rng));
+            assert_eq!(fast.eval_pdf(wo, wi), general.eval_pdf(wo, wi), "{wo} {wi}");
+            let (ul, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+            assert_eq!(fast.sample(wo, ul, u), general.sample(wo, ul, u), "{wo}");
+        }
+    }
+    // A specular layer or metal takes the general path.
+    let coated = BsdfParams {
+        specular: 1.0,
+        ..BsdfParams::lambertian(Vec3::ONE)
+    };
+    assert!(!Bsdf::new(&coated).lambertian);
+}

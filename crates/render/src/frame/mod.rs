@@ -70,8 +70,8 @@ pub struct FrameReport {
     pub accumulated: u32,
     /// Samples per pixel in the history.
     pub spp: u32,
-    /// False when accumulation had reached `max_frames` and nothing was traced (only the
-    /// display pass ran).
+    /// False when accumulation had reached `max_frames`: nothing was traced and the history
+    /// is as it was.
     pub traced: bool,
     pub passes: Vec<PassTime>,
     /// Wall time of the whole frame.
