@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use pathlight_accel::{Accel, Hit, NativeBvh, Ray, RayKind, RaySets, SceneTriangles};
 use rayon::prelude::*;
@@ -300,10 +300,7 @@ fn run_rays(args: &RaysArgs) -> Result<()> {
     if args.repeat == 0 {
         bail!("--repeat must be at least 1");
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("creating the thread pool")?;
+    let pool = crate::terminal::thread_pool(Some(threads))?;
 
     let options = args.scene.load_options();
     let path = args.scene.scene.as_deref();
@@ -510,10 +507,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
     }
     let config = args.settings.apply(Config::realtime())?;
     check(&config)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("starting the worker threads")?;
+    let pool = crate::terminal::thread_pool(args.threads)?;
     let setup = Instant::now();
     let path = args.scene.scene.as_deref();
     let scene = pathlight_scene::load(path, &args.scene.load_options())?;

@@ -3,15 +3,16 @@
 //! stops it, keeping the reference's checkpoint and writing what was measured.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Args;
 use pathlight_eval::experiment::{spec_dir, Progress, Runner};
 use pathlight_eval::publish::publish;
 use pathlight_eval::reference::ReferenceCache;
 use pathlight_eval::spec::Spec;
+
+use crate::terminal::{ctrl_c_flag, progress_bar, thread_pool};
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -42,25 +43,12 @@ pub struct EvalArgs {
 
 pub fn run(args: &EvalArgs) -> Result<()> {
     let spec = Spec::load(&args.spec)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("starting the worker threads")?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = cancel.clone();
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
-    let bar = if args.quiet || args.json {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(1)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg} ETA {eta}",
-        )
-        .expect("a valid template"),
+    let pool = thread_pool(args.threads)?;
+    let cancel = ctrl_c_flag();
+    let bar = progress_bar(
+        args.quiet || args.json,
+        1,
+        "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg} ETA {eta}",
     );
     let task = Mutex::new(String::new());
     let progress = |p: &Progress| {

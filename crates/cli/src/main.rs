@@ -15,6 +15,7 @@ mod memory;
 mod play;
 mod render;
 mod scene_args;
+mod terminal;
 mod view;
 
 use std::io::Write;

@@ -3,8 +3,7 @@
 //! frames (PNG or EXR) and per-frame, per-pass timings (JSON).
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
@@ -17,6 +16,7 @@ use serde::Serialize;
 
 use crate::bench::Summary;
 use crate::config_args::{check, ConfigArgs};
+use crate::terminal::{ctrl_c_flag, progress_bar, thread_pool};
 use crate::SceneArgs;
 
 /// Largest path file read.
@@ -146,10 +146,7 @@ fn load_path(arg: &str, world: &World, config: &Config) -> Result<CameraPath> {
 pub fn run(args: &PlayArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
     check(&config)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("starting the worker threads")?;
+    let pool = thread_pool(args.threads)?;
     let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
     let world = pool.install(|| World::new(scene, config.light_selection));
     let path = load_path(&args.path, &world, &config)?;
@@ -162,21 +159,11 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     }
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = cancel.clone();
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
-    let bar = if args.quiet || args.json {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(frames)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} frames {msg} ETA {eta}",
-        )
-        .expect("a valid template"),
+    let cancel = ctrl_c_flag();
+    let bar = progress_bar(
+        args.quiet || args.json,
+        frames,
+        "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} frames {msg} ETA {eta}",
     );
 
     let with_view = |view: &CameraConfig| Config {

@@ -2,8 +2,7 @@
 //! Ctrl-C that keeps what is done, periodic checkpoints and `--resume`.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -15,6 +14,7 @@ use pathlight_render::{Config, Film, World};
 
 use crate::config_args::{check, ConfigArgs};
 use crate::memory::peak_rss_bytes;
+use crate::terminal::{ctrl_c_flag, progress_bar, thread_pool};
 use crate::SceneArgs;
 
 /// Most samples per pixel in one pass (checkpoint and Ctrl-C granularity).
@@ -112,11 +112,7 @@ fn scene_identity(world: &World, args: &SceneArgs) -> String {
 
 pub fn run(args: &RenderArgs) -> Result<()> {
     pathlight_render::output::Format::from_path(&args.out)?;
-    let threads = args.threads.unwrap_or(0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("starting the worker threads")?;
+    let pool = thread_pool(args.threads)?;
     pool.install(|| render(args))
 }
 
@@ -158,24 +154,13 @@ fn render(args: &RenderArgs) -> Result<()> {
         Film::new(config.width, config.height)
     };
 
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = cancel.clone();
-        // A second Ctrl-C while the output is written is ignored; the handler can only be set
-        // once per process, which is fine for a command-line run.
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
+    // A second Ctrl-C while the output is written is ignored.
+    let cancel = ctrl_c_flag();
     let total = config.width as u64 * config.height as u64 * config.spp as u64;
-    let bar = if args.quiet || args.json {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(total)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg} ETA {eta}",
-        )
-        .unwrap(),
+    let bar = progress_bar(
+        args.quiet || args.json,
+        total,
+        "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg} ETA {eta}",
     );
     let done = AtomicU64::new(film.samples().min(total));
     bar.set_position(done.load(Ordering::Relaxed));

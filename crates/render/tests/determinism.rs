@@ -2,18 +2,14 @@
 //! stopped part-way (between passes or in the middle of one) and resumed from its checkpoint
 //! ends bit-identical to an uninterrupted one.
 
+mod common;
+
+use common::{cornell, in_pool};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use pathlight_render::checkpoint::{self, Header};
 use pathlight_render::renderer::{render, render_pass};
-use pathlight_render::{Config, Film, World};
-
-fn cornell() -> World {
-    World::new(
-        pathlight_scene::load(None, &Default::default()).unwrap(),
-        Default::default(),
-    )
-}
+use pathlight_render::{Config, Film};
 
 fn config() -> Config {
     Config {
@@ -23,14 +19,6 @@ fn config() -> Config {
         seed: 7,
         ..Config::default()
     }
-}
-
-fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(f)
 }
 
 #[test]

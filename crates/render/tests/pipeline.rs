@@ -3,6 +3,9 @@
 //! analytic image motion of a translating camera, changes reset the history (display settings
 //! do not), and every display mode shows something.
 
+mod common;
+
+use common::{cornell, in_pool};
 use glam::Vec2;
 use pathlight_render::camera_path::{CameraPath, PathKind};
 use pathlight_render::config::FrameConfig;
@@ -11,13 +14,6 @@ use pathlight_render::frame::{Pipeline, ACCUMULATE, DISPLAY, LIGHTING, PRIMARY};
 use pathlight_render::renderer::render;
 use pathlight_render::{Config, World};
 
-fn cornell() -> World {
-    World::new(
-        pathlight_scene::load(None, &Default::default()).unwrap(),
-        Default::default(),
-    )
-}
-
 fn config() -> Config {
     Config {
         width: 40,
@@ -25,14 +21,6 @@ fn config() -> Config {
         seed: 7,
         ..Config::default()
     }
-}
-
-fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(f)
 }
 
 /// N still frames of one sample are the reference render at N spp, bit for bit: the G-buffer

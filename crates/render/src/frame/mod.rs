@@ -184,7 +184,7 @@ impl Pipeline {
         let (w, h) = (self.config.width, self.config.height);
         self.gbuffer.resize(w, h);
         let n = w as usize * h as usize;
-        self.history.clear();
+        // Same size: kept as they are (the first frame of the epoch overwrites the history).
         self.history.resize(n, PixelStats::default());
         self.lighting.resize(n, LightSample::default());
         self.stale = false;
@@ -236,10 +236,17 @@ impl Pipeline {
             });
 
             let t = Instant::now();
+            let first = self.frames == 0;
             self.history
                 .par_iter_mut()
                 .zip(self.lighting.par_iter())
-                .for_each(|(h, l)| h.merge(&l.stats));
+                .for_each(|(h, l)| {
+                    if first {
+                        *h = l.stats;
+                    } else {
+                        h.merge(&l.stats);
+                    }
+                });
             passes.push(PassTime {
                 pass: ACCUMULATE,
                 ms: t.elapsed().as_secs_f64() * 1e3,

@@ -104,3 +104,20 @@ pub fn config(width: u32, height: u32, spp: u32) -> Config {
         ..Config::default()
     }
 }
+
+/// The built-in Cornell box, ready to render.
+pub fn cornell() -> World {
+    World::new(
+        pathlight_scene::load(None, &Default::default()).unwrap(),
+        Default::default(),
+    )
+}
+
+/// Runs `f` on a pool of exactly `threads` workers.
+pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
