@@ -1,7 +1,7 @@
 //! The render camera: pinhole or thin lens (seed 001's depth of field) or orthographic, with
 //! ray differentials for one-pixel steps in x and y.
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use pathlight_accel::Ray;
 use pathlight_scene::{Camera as SceneCamera, Projection};
 
@@ -38,6 +38,12 @@ pub struct Camera {
     lens_radius: f32,
     /// Distance of the plane in focus along the view direction.
     focus_distance: f32,
+    /// The pinhole's world direction (not unit) through film position (0, 0), and its change
+    /// per pixel in x and y: the film as an affine map, so a camera ray costs one normalise.
+    film_direction: [Vec3; 3],
+    /// World point to homogeneous film coordinates: film = (r0 . p, r1 . p) / (r2 . p), with
+    /// r2 . p > 0 in front of a perspective camera (the projection as one matrix).
+    projection: [Vec4; 3],
 }
 
 impl Camera {
@@ -51,7 +57,7 @@ impl Camera {
                 half_height: ymag.abs().max(1e-6),
             },
         };
-        Self {
+        let mut c = Self {
             to_world: camera.transform,
             to_camera: camera.transform.inverse(),
             kind,
@@ -59,7 +65,30 @@ impl Camera {
             height: height.max(1) as f32,
             lens_radius: 0.0,
             focus_distance: 1.0,
-        }
+            film_direction: [Vec3::ZERO; 3],
+            projection: [Vec4::ZERO; 3],
+        };
+        // `film_point` is affine in the film position.
+        let p0 = c.film_point(Vec2::ZERO);
+        let world = |v: Vec3| c.to_world.transform_vector3(v);
+        c.film_direction = [
+            world(p0),
+            world(c.film_point(Vec2::X) - p0),
+            world(c.film_point(Vec2::Y) - p0),
+        ];
+        // The perspective projection: film = ((sx + 1) W / 2, (1 - sy) H / 2)
+        // with (sx, sy) = (x / (aspect half), y / half) / -z, as rows over camera space,
+        // composed with world to camera.
+        let (half, aspect) = (c.half_height(), c.width / c.height);
+        let rows = c.to_camera.transpose();
+        let (kx, ky) = (0.5 * c.width / (aspect * half), 0.5 * c.height / half);
+        let depth = -rows.z_axis;
+        c.projection = [
+            rows.x_axis * kx + depth * (0.5 * c.width),
+            rows.y_axis * -ky + depth * (0.5 * c.height),
+            depth,
+        ];
+        c
     }
 
     /// Adds a thin lens of radius `lens_radius` focused at `focus_distance` (depth of field).
@@ -85,11 +114,17 @@ impl Camera {
         let aspect = self.width / self.height;
         let sx = 2.0 * film.x / self.width - 1.0;
         let sy = 1.0 - 2.0 * film.y / self.height;
-        let half = match self.kind {
+        let half = self.half_height();
+        Vec3::new(sx * aspect * half, sy * half, -1.0)
+    }
+
+    /// Half the film's height on the image plane at distance 1 (perspective) or in scene units
+    /// (orthographic).
+    fn half_height(&self) -> f32 {
+        match self.kind {
             Kind::Perspective { tan_half_fov_y } => tan_half_fov_y,
             Kind::Orthographic { half_height } => half_height,
-        };
-        Vec3::new(sx * aspect * half, sy * half, -1.0)
+        }
     }
 
     /// The camera-space ray through film point `film` and lens sample `lens` in [0,1)^2.
@@ -115,6 +150,13 @@ impl Camera {
     /// without differentials.
     #[inline]
     pub fn primary_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        if self.lens_radius == 0.0 && matches!(self.kind, Kind::Perspective { .. }) {
+            let [d0, dx, dy] = self.film_direction;
+            return Ray::new(
+                self.position(),
+                (d0 + dx * film.x + dy * film.y).normalize(),
+            );
+        }
         let (o, d) = self.local_ray(film, lens);
         Ray::new(
             self.to_world.transform_point3(o),
@@ -145,30 +187,39 @@ impl Camera {
 
     /// The film position (pixels) where world point `p` projects, if it is in front of the
     /// camera (pinhole geometry; used for motion vectors and reprojection).
+    #[inline]
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
-        self.project_local(self.to_camera.transform_point3(p))
+        match self.kind {
+            Kind::Perspective { .. } => self.project_homogeneous(p.extend(1.0)),
+            Kind::Orthographic { .. } => {
+                self.project_orthographic(self.to_camera.transform_point3(p))
+            }
+        }
     }
 
     /// The film position (pixels) where points infinitely far in world direction `d` project
     /// (the environment), if they are in front of the camera.
+    #[inline]
     pub fn project_direction(&self, d: Vec3) -> Option<Vec2> {
         match self.kind {
-            Kind::Perspective { .. } => self.project_local(self.to_camera.transform_vector3(d)),
+            Kind::Perspective { .. } => self.project_homogeneous(d.extend(0.0)),
             Kind::Orthographic { .. } => None,
         }
     }
 
-    fn project_local(&self, local: Vec3) -> Option<Vec2> {
-        if local.z >= 0.0 && matches!(self.kind, Kind::Perspective { .. }) {
-            return None;
-        }
-        let (half, q) = match self.kind {
-            Kind::Perspective { tan_half_fov_y } => (tan_half_fov_y, local / -local.z),
-            Kind::Orthographic { half_height } => (half_height, local),
-        };
+    /// Perspective projection of homogeneous world point `h` (a direction when `h.w == 0`).
+    #[inline]
+    fn project_homogeneous(&self, h: Vec4) -> Option<Vec2> {
+        let [a, b, w] = self.projection.map(|r| r.dot(h));
+        (w > 0.0).then(|| Vec2::new(a, b) / w)
+    }
+
+    /// Orthographic projection of camera-space point `local`.
+    fn project_orthographic(&self, local: Vec3) -> Option<Vec2> {
+        let half = self.half_height();
         let aspect = self.width / self.height;
-        let sx = q.x / (aspect * half);
-        let sy = q.y / half;
+        let sx = local.x / (aspect * half);
+        let sy = local.y / half;
         Some(Vec2::new(
             (sx + 1.0) * 0.5 * self.width,
             (1.0 - sy) * 0.5 * self.height,

@@ -69,8 +69,7 @@ pub struct Vertex {
 impl Vertex {
     /// The vertex of `hit` on `ray`.
     pub fn new(world: &World, ray: &Ray, hit: Hit, microfacet: crate::bsdf::Microfacet) -> Self {
-        let surface = Surface::new(world, ray, &hit);
-        let shading = surface.shade(world, microfacet);
+        let (surface, shading) = Surface::shaded(world, ray, &hit, microfacet);
         Self {
             hit,
             surface,
@@ -228,8 +227,7 @@ impl PathTracer<'_> {
             let Some(hit) = world.accel.intersect(&ray) else {
                 return tr;
             };
-            let surface = Surface::new(world, &ray, &hit);
-            let shading = surface.shade(world, self.config.microfacet);
+            let (surface, shading) = Surface::shaded(world, &ray, &hit, self.config.microfacet);
             tr *= 1.0 - shading.alpha;
             if tr <= 0.0 {
                 return 0.0;

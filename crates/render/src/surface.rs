@@ -21,9 +21,6 @@ pub struct Surface {
     pub b: Vec3,
     /// True when the ray hit the front face (the winding's side).
     pub front: bool,
-    pub uv: [Vec2; 2],
-    /// Vertex colour (linear RGBA), white without one.
-    pub color: Vec4,
     pub instance: u32,
     pub triangle: u32,
     /// The hit's barycentrics (weights of corners 1 and 2).
@@ -48,6 +45,24 @@ impl Surface {
     /// ray came from (both faces look the same, as in Cycles); refracting volumes keep their
     /// outward normal, so that `wo.z < 0` in the shading frame means "from inside".
     pub fn new(world: &World, ray: &Ray, hit: &Hit) -> Self {
+        Self::with_texcoords(world, ray, hit).0
+    }
+
+    /// The shading point of `hit` on `ray` and the material's values there.
+    pub fn shaded(
+        world: &World,
+        ray: &Ray,
+        hit: &Hit,
+        distribution: Microfacet,
+    ) -> (Self, Shading) {
+        let (surface, uv, color) = Self::with_texcoords(world, ray, hit);
+        let mat = &world.scene.materials[surface.material as usize];
+        (surface, shade_material(world, mat, uv, color, distribution))
+    }
+
+    /// [`new`](Self::new), with the texture coordinates and the vertex colour (linear RGBA,
+    /// white without one) at the hit.
+    fn with_texcoords(world: &World, ray: &Ray, hit: &Hit) -> (Self, [Vec2; 2], Vec4) {
         let scene = &world.scene;
         let inst = &scene.instances[hit.instance as usize];
         let mesh = &scene.meshes[inst.mesh as usize];
@@ -75,17 +90,20 @@ impl Surface {
         let color = mesh.colors.as_ref().map_or(Vec4::ONE, |cs| {
             cs[idx[0] as usize] * w + cs[idx[1] as usize] * u + cs[idx[2] as usize] * v
         });
-        // Tangent frame: from the mesh's tangents when present, else any frame around ns.
-        let (mut t, bt) = match &mesh.tangents {
-            Some(ts) => {
-                let t4 =
-                    ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
-                let lin = world.linear[hit.instance as usize];
-                let t = lin * t4.xyz();
-                let t = (t - ns * ns.dot(t)).normalize_or_zero();
-                if t == Vec3::ZERO {
-                    frame(ns)
-                } else {
+        // The tangent from the mesh's tangents when present; without them any frame around
+        // the final normal does.
+        let mut tangent = mesh.tangents.as_ref().and_then(|ts| {
+            let t4 = ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
+            let t = world.linear[hit.instance as usize] * t4.xyz();
+            let t = (t - ns * ns.dot(t)).normalize_or_zero();
+            (t != Vec3::ZERO).then_some(t)
+        });
+        let material = mesh.material;
+        let mat = &scene.materials[material as usize];
+        // Normal map (tangent space, glTF convention: +Y up in the texture = bitangent).
+        if let Some(tex) = &mat.normal_texture {
+            let (t, bt) = match (tangent, &mesh.tangents) {
+                (Some(t), Some(ts)) => {
                     let sign = if ts[idx[0] as usize].w < 0.0 {
                         -1.0
                     } else {
@@ -93,13 +111,8 @@ impl Surface {
                     };
                     (t, ns.cross(t) * sign)
                 }
-            }
-            None => frame(ns),
-        };
-        let material = mesh.material;
-        let mat = &scene.materials[material as usize];
-        // Normal map (tangent space, glTF convention: +Y up in the texture = bitangent).
-        if let Some(tex) = &mat.normal_texture {
+                _ => frame(ns),
+            };
             let n = sample(world, tex, uv).xyz() * 2.0 - Vec3::ONE;
             let n = Vec3::new(n.x * mat.normal_scale, n.y * mat.normal_scale, n.z);
             let mapped = (t * n.x + bt * n.y + ns * n.z).normalize_or(ns);
@@ -108,7 +121,7 @@ impl Surface {
             if mapped.dot(ng) * ns.dot(ng) > 0.0 {
                 ns = mapped;
             }
-            t = reframe(ns, t).0;
+            tangent = Some(t);
         }
         let front = ray.direction.dot(ng) < 0.0;
         let refracting = mat.transmission > 0.0 && mat.volume.is_some();
@@ -120,21 +133,23 @@ impl Surface {
         if ns.dot(ng) < 0.0 {
             ns = (ns - ng * (2.0 * ns.dot(ng))).normalize_or(ng);
         }
-        let (t, b) = reframe(ns, t);
-        Self {
+        let (t, b) = match tangent {
+            Some(t) => reframe(ns, t),
+            None => frame(ns),
+        };
+        let surface = Self {
             p,
             ng,
             ns,
             t,
             b,
             front,
-            uv,
-            color,
             instance: hit.instance,
             triangle: hit.triangle,
             bary: Vec2::new(u, v),
             material,
-        }
+        };
+        (surface, uv, color)
     }
 
     /// World direction to shading frame.
@@ -153,12 +168,6 @@ impl Surface {
     #[inline]
     pub fn spawn_origin(&self, d: Vec3) -> Vec3 {
         offset_origin(self.p, self.ng, d)
-    }
-
-    /// The material's values here.
-    pub fn shade(&self, world: &World, distribution: Microfacet) -> Shading {
-        let mat = &world.scene.materials[self.material as usize];
-        shade_material(world, mat, self.uv, self.color, distribution)
     }
 }
 

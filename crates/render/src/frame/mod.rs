@@ -321,23 +321,30 @@ fn trace(
         .map_init(
             || Vec::with_capacity(RUN),
             |hits, (b, (gpixels, lpixels))| {
-                let at = |i: usize| {
-                    let p = b * RUN + i;
-                    ((p % w) as u32, (p / w) as u32)
+                // The pixels of the run, in order (no division per pixel).
+                let start = b * RUN;
+                let pixels = || {
+                    let (mut x, mut y) = ((start % w) as u32, (start / w) as u32);
+                    std::iter::from_fn(move || {
+                        let p = (x, y);
+                        x += 1;
+                        if x as usize == w {
+                            (x, y) = (0, y + 1);
+                        }
+                        Some(p)
+                    })
                 };
                 let mut rays = 0u64;
                 let t0 = Instant::now();
                 hits.clear();
-                for (i, g) in gpixels.iter_mut().enumerate() {
-                    let (x, y) = at(i);
+                for (g, (x, y)) in gpixels.iter_mut().zip(pixels()) {
                     let (pixel, hit, r) = gbuffer::primary(tracer, x, y, index, previous);
                     *g = pixel;
                     hits.push(hit);
                     rays += r as u64;
                 }
                 let t1 = Instant::now();
-                for (i, (l, hit)) in lpixels.iter_mut().zip(hits.iter()).enumerate() {
-                    let (x, y) = at(i);
+                for ((l, hit), (x, y)) in lpixels.iter_mut().zip(hits.iter()).zip(pixels()) {
                     let (sample, r) = lighting::lighting(tracer, x, y, hit, index, spp);
                     *l = sample;
                     rays += r;
