@@ -68,18 +68,18 @@ impl Camera {
             film_direction: [Vec3::ZERO; 3],
             projection: [Vec4::ZERO; 3],
         };
-        // `film_point` is affine in the film position.
-        let p0 = c.film_point(Vec2::ZERO);
+        // `film_point` is affine in the film position: its value at (0, 0) and its steps per
+        // pixel, written out (differences of film points would cancel digits away).
+        let (half, aspect) = (c.half_height(), c.width / c.height);
         let world = |v: Vec3| c.to_world.transform_vector3(v);
         c.film_direction = [
-            world(p0),
-            world(c.film_point(Vec2::X) - p0),
-            world(c.film_point(Vec2::Y) - p0),
+            world(Vec3::new(-aspect * half, half, -1.0)),
+            world(Vec3::new(2.0 * aspect * half / c.width, 0.0, 0.0)),
+            world(Vec3::new(0.0, -2.0 * half / c.height, 0.0)),
         ];
         // The perspective projection: film = ((sx + 1) W / 2, (1 - sy) H / 2)
         // with (sx, sy) = (x / (aspect half), y / half) / -z, as rows over camera space,
         // composed with world to camera.
-        let (half, aspect) = (c.half_height(), c.width / c.height);
         let rows = c.to_camera.transpose();
         let (kx, ky) = (0.5 * c.width / (aspect * half), 0.5 * c.height / half);
         let depth = -rows.z_axis;
@@ -285,6 +285,32 @@ mod tests {
             let back = c.project(r.at(2.7)).unwrap();
             assert!((back - film).length() < 1e-3, "{film} -> {back}");
         }
+    }
+
+    /// The pinhole's precomputed film map and projection matrix agree with the general camera
+    /// model (`ray`, which goes through camera space) and invert each other.
+    #[test]
+    fn fast_pinhole_paths_agree_with_the_camera_model() {
+        let c = cornell(640, 360);
+        for film in [
+            Vec2::ZERO,
+            Vec2::new(640.0, 360.0),
+            Vec2::new(17.25, 300.5),
+            Vec2::new(600.0, 3.0),
+        ] {
+            let fast = c.primary_ray(film, Vec2::splat(0.3));
+            let model = c.ray(film, Vec2::splat(0.3)).ray;
+            assert!((fast.origin - model.origin).length() < 1e-6);
+            let err = (fast.direction - model.direction).length();
+            assert!(err < 1e-6, "{film}: {err}");
+            let back = c.project(fast.at(3.3)).unwrap();
+            assert!((back - film).length() < 1e-3, "{film} -> {back}");
+            let sky = c.project_direction(fast.direction).unwrap();
+            assert!((sky - film).length() < 1e-3, "{film} -> {sky}");
+        }
+        // Behind the camera: no projection.
+        assert_eq!(c.project(Vec3::new(0.0, 1.0, 5.0)), None);
+        assert_eq!(c.project_direction(Vec3::Z), None);
     }
 
     #[test]
