@@ -8,6 +8,7 @@
 
 use std::sync::Once;
 
+use plotters::chart::MeshStyle;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
@@ -32,6 +33,21 @@ pub const PALETTE: [(u8, u8, u8); 10] = [
     (23, 190, 207),
 ];
 const FONT: &str = "sans-serif";
+
+/// The charts' common axis style: label fonts, light grey grid lines, no minor lines.
+fn house_style<'m, 'a, 'b, X, Y, DB>(
+    mesh: &'m mut MeshStyle<'a, 'b, X, Y, DB>,
+) -> &'m mut MeshStyle<'a, 'b, X, Y, DB>
+where
+    X: Ranged,
+    Y: Ranged,
+    DB: DrawingBackend,
+{
+    mesh.label_style((FONT, 15))
+        .axis_desc_style((FONT, 16))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .light_line_style(TRANSPARENT)
+}
 
 /// One line of a line chart.
 #[derive(Debug, Clone, PartialEq)]
@@ -376,16 +392,11 @@ pub fn line_chart(
             .build_cartesian_2d(xs.coord(), ys.coord())?;
         let xl = |t: &f64| xs.label(*t);
         let yl = |t: &f64| ys.label(*t);
-        chart
-            .configure_mesh()
+        house_style(&mut chart.configure_mesh())
             .x_desc(x.label.as_str())
             .y_desc(y.label.as_str())
             .x_label_formatter(&xl)
             .y_label_formatter(&yl)
-            .label_style((FONT, 15))
-            .axis_desc_style((FONT, 16))
-            .bold_line_style(RGBColor(215, 215, 215))
-            .light_line_style(TRANSPARENT)
             .draw()?;
         let drawn: Vec<Vec<(f64, f64)>> = series
             .iter()
@@ -506,16 +517,11 @@ fn bars_png(
             stacks.get(i).map_or(String::new(), |s| s.label.clone())
         };
         let yl = |t: &f64| ys.label(*t);
-        chart
-            .configure_mesh()
+        house_style(&mut chart.configure_mesh())
             .disable_x_mesh()
             .y_desc(y.label.as_str())
             .x_label_formatter(&xl)
             .y_label_formatter(&yl)
-            .label_style((FONT, 15))
-            .axis_desc_style((FONT, 16))
-            .bold_line_style(RGBColor(215, 215, 215))
-            .light_line_style(TRANSPARENT)
             .draw()?;
         let bottom = ys.range.0;
         for (i, s) in stacks.iter().enumerate() {

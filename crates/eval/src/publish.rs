@@ -88,43 +88,25 @@ pub fn publish(outcome: &Outcome, out: &Path) -> Result<PathBuf, EvalError> {
             by_spp.push(guide);
         }
         if !by_spp.is_empty() {
-            let x = Axis {
-                label: "samples per pixel".into(),
-                log: true,
-            };
-            let file = format!("plots/{name}-vs-spp.png");
-            let png = plot::line_chart(
+            samples.figures.push(line_figure(
+                out,
+                &format!("plots/{name}-vs-spp.png"),
                 &format!("{metric} against samples"),
-                &x,
+                "samples per pixel",
                 &y,
                 &by_spp,
-                CHART.0,
-                CHART.1,
-            )?;
-            write(out, &file, &png)?;
-            samples.figures.push(figure(
-                &file,
                 &format!("{} against samples per pixel", metric.description()),
-            ));
+            )?);
         }
-        let x = Axis {
-            label: "render time (ms)".into(),
-            log: true,
-        };
-        let file = format!("plots/{name}-vs-time.png");
-        let png = plot::line_chart(
+        time.figures.push(line_figure(
+            out,
+            &format!("plots/{name}-vs-time.png"),
             &format!("{metric} against time"),
-            &x,
+            "render time (ms)",
             &y,
             &by_ms,
-            CHART.0,
-            CHART.1,
-        )?;
-        write(out, &file, &png)?;
-        time.figures.push(figure(
-            &file,
             &format!("{} against render time", metric.description()),
-        ));
+        )?);
 
         let budget = match (spec.budget.time_ms.last(), spec.budget.spp.last()) {
             (Some(t), _) => format!("equal time, {t} ms"),
@@ -183,6 +165,26 @@ fn section(title: &str, text: &str) -> Section {
 }
 
 /// A chart, shown at the page's width.
+/// A line chart of `series` over a logarithmic x axis labelled `x_label`, written to `file`
+/// under `out`, as a figure captioned `caption`.
+fn line_figure(
+    out: &Path,
+    file: &str,
+    title: &str,
+    x_label: &str,
+    y: &Axis,
+    series: &[Series],
+    caption: &str,
+) -> Result<Figure, EvalError> {
+    let x = Axis {
+        label: x_label.to_owned(),
+        log: true,
+    };
+    let png = plot::line_chart(title, &x, y, series, CHART.0, CHART.1)?;
+    write(out, file, &png)?;
+    Ok(figure(file, caption))
+}
+
 fn figure(path: &str, caption: &str) -> Figure {
     Figure {
         path: path.to_owned(),

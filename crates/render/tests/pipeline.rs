@@ -25,6 +25,11 @@ fn config() -> Config {
 
 /// N still frames of one sample are the reference render at N spp, bit for bit: the G-buffer
 /// pass and the lighting pass together trace exactly the reference's paths.
+/// The reference path tracer's image of `cfg` at `spp` samples per pixel.
+fn reference(world: &World, cfg: &Config, spp: u32) -> pathlight_render::film::Film {
+    render(world, &world.camera(cfg), &Config { spp, ..cfg.clone() })
+}
+
 #[test]
 fn still_frames_accumulate_to_the_reference_render() {
     let world = cornell();
@@ -39,14 +44,7 @@ fn still_frames_accumulate_to_the_reference_render() {
             assert_eq!((r.accumulated, r.spp, r.epoch), (f, f, 0));
             assert!(r.rays >= 40 * 30, "{} rays", r.rays);
         }
-        let film = render(
-            &world,
-            &world.camera(&cfg),
-            &Config {
-                spp: 8,
-                ..cfg.clone()
-            },
-        );
+        let film = reference(&world, &cfg, 8);
         for (h, p) in pipeline.history.iter().zip(&film.pixels) {
             assert_eq!(h.n, p.n);
             assert_eq!(h.direct.mean, p.direct, "{max_bounces:?}");
@@ -72,14 +70,7 @@ fn still_frames_accumulate_to_the_reference_render() {
     for _ in 0..4 {
         pipeline.render_frame(&world);
     }
-    let film = render(
-        &world,
-        &world.camera(&cfg),
-        &Config {
-            spp: 8,
-            ..cfg.clone()
-        },
-    );
+    let film = reference(&world, &cfg, 8);
     for (h, p) in pipeline.history.iter().zip(&film.pixels) {
         assert_eq!(h.n, 8);
         assert!(h
