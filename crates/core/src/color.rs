@@ -79,19 +79,53 @@ fn srgb8_buckets() -> &'static [u8] {
 /// result as evaluating the transfer function, without a `powf` per value.
 #[inline]
 pub fn linear_to_srgb8(c: f32) -> u8 {
-    // Zero, negative and NaN all encode as 0; 1 and above as 255.
-    if c.is_nan() || c <= 0.0 {
-        return 0;
+    Srgb8Encoder::new().encode(c)
+}
+
+/// [`linear_to_srgb8`] with its tables looked up once, for loops over many values.
+#[derive(Clone, Copy)]
+pub struct Srgb8Encoder {
+    buckets: &'static [u8],
+    thresholds: &'static [f32; 255],
+}
+
+impl Default for Srgb8Encoder {
+    fn default() -> Self {
+        Self::new()
     }
-    if c >= 1.0 {
-        return 255;
+}
+
+impl Srgb8Encoder {
+    #[inline]
+    pub fn new() -> Self {
+        Self {
+            buckets: srgb8_buckets(),
+            thresholds: srgb8_thresholds(),
+        }
     }
-    let thresholds = srgb8_thresholds();
-    let mut code = srgb8_buckets()[(c.to_bits() >> 16) as usize];
-    while code < 255 && c >= thresholds[code as usize] {
-        code += 1;
+
+    /// [`linear_to_srgb8`] of `c`.
+    #[inline]
+    pub fn encode(&self, c: f32) -> u8 {
+        // Zero, negative and NaN all encode as 0; 1 and above as 255.
+        if c.is_nan() || c <= 0.0 {
+            return 0;
+        }
+        if c >= 1.0 {
+            return 255;
+        }
+        let mut code = self.buckets[(c.to_bits() >> 16) as usize];
+        while code < 255 && c >= self.thresholds[code as usize] {
+            code += 1;
+        }
+        code
     }
-    code
+
+    /// [`encode`](Self::encode) of each channel.
+    #[inline]
+    pub fn encode3(&self, c: Vec3) -> [u8; 3] {
+        [self.encode(c.x), self.encode(c.y), self.encode(c.z)]
+    }
 }
 
 /// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).

@@ -445,6 +445,7 @@ impl Lights {
     /// point. `None` when nothing can be sampled (no light, or the point is behind a one-sided
     /// emitter), and whenever the sample would carry no radiance (outside a spot's cone or a
     /// light's range, on a black texel).
+    #[inline]
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
         let (index, select) = self.selection.as_ref()?.sample(u_select);
         let n_tri = self.triangles.len();

@@ -10,7 +10,6 @@ use glam::{Vec2, Vec3};
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::{hash, Rng};
 
-use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::config::{Config, MAX_PATH_VERTICES};
 use crate::sampler::PixelSampler;
@@ -68,6 +67,7 @@ pub struct Vertex {
 
 impl Vertex {
     /// The vertex of `hit` on `ray`.
+    #[inline(always)]
     pub fn new(world: &World, ray: &Ray, hit: Hit, microfacet: crate::bsdf::Microfacet) -> Self {
         let (surface, shading) = Surface::shaded(world, ray, &hit, microfacet);
         Self {
@@ -180,6 +180,7 @@ impl PathTracer<'_> {
 
     /// The closest surface along `ray` that is not cut away, with its shading; counts the
     /// rays traced into `rays`.
+    #[inline(always)]
     pub fn intersect(&self, mut ray: Ray, rng: &mut Rng, rays: &mut u32) -> Option<Vertex> {
         let world = self.world;
         for _ in 0..MAX_ALPHA_LAYERS {
@@ -293,7 +294,7 @@ impl PathTracer<'_> {
                 beta *= (-sigma_a * hit.t).exp();
             }
             let wo = -ray.direction;
-            let bsdf = Bsdf::new(&shading.params);
+            let bsdf = world.bsdf(surface.material, &shading.params);
             if bounce == 0 {
                 out.albedo = shading.params.base_color;
                 out.normal = surface.ns;

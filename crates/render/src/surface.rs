@@ -49,6 +49,7 @@ impl Surface {
     }
 
     /// The shading point of `hit` on `ray` and the material's values there.
+    #[inline(always)]
     pub fn shaded(
         world: &World,
         ray: &Ray,
@@ -56,12 +57,18 @@ impl Surface {
         distribution: Microfacet,
     ) -> (Self, Shading) {
         let (surface, uv, color) = Self::with_texcoords(world, ray, hit);
+        if color == Vec4::ONE {
+            if let Some(shading) = world.uniform_shading(surface.material, distribution) {
+                return (surface, shading);
+            }
+        }
         let mat = &world.scene.materials[surface.material as usize];
         (surface, shade_material(world, mat, uv, color, distribution))
     }
 
     /// [`new`](Self::new), with the texture coordinates and the vertex colour (linear RGBA,
     /// white without one) at the hit.
+    #[inline(always)]
     fn with_texcoords(world: &World, ray: &Ray, hit: &Hit) -> (Self, [Vec2; 2], Vec4) {
         let scene = &world.scene;
         let inst = &scene.instances[hit.instance as usize];

@@ -1,11 +1,13 @@
 //! The scene as the renderer sees it: the scene model, its acceleration structure, its lights
 //! and per-instance data the shading code needs on every hit.
 
-use glam::Mat3;
+use glam::{Mat3, Vec2, Vec4};
 use pathlight_accel::{build_accel, Accel};
-use pathlight_scene::{AlphaMode, Scene};
+use pathlight_scene::{AlphaMode, Material, Scene};
 
+use crate::bsdf::{Bsdf, BsdfParams, Microfacet};
 use crate::light::{LightSelection, Lights};
+use crate::surface::{shade_material, Shading};
 
 pub struct World {
     pub scene: Scene,
@@ -19,6 +21,44 @@ pub struct World {
     pub(crate) linear: Vec<Mat3>,
     /// True when some material is alpha-masked or blended (rays then look through cut-outs).
     pub(crate) has_alpha: bool,
+    /// Per material: its shading and BSDFs where no texture varies them over the surface
+    /// (computed once here instead of at every hit).
+    uniform: Vec<Option<UniformMaterial>>,
+}
+
+/// A material without textures: the same shading everywhere (on meshes without vertex
+/// colours), and its BSDF for each microfacet distribution.
+struct UniformMaterial {
+    shading: Shading,
+    /// Indexed by [`Microfacet`] (GGX, Beckmann).
+    bsdf: [Bsdf; 2],
+}
+
+impl UniformMaterial {
+    fn new(world_textures: &World, mat: &Material) -> Option<Self> {
+        let textured = mat.base_color_texture.is_some()
+            || mat.metallic_roughness_texture.is_some()
+            || mat.specular_texture.is_some()
+            || mat.specular_color_texture.is_some()
+            || mat.transmission_texture.is_some();
+        if textured {
+            return None;
+        }
+        let shading = shade_material(
+            world_textures,
+            mat,
+            [Vec2::ZERO; 2],
+            Vec4::ONE,
+            Microfacet::Ggx,
+        );
+        let bsdf = [Microfacet::Ggx, Microfacet::Beckmann].map(|distribution| {
+            Bsdf::new(&BsdfParams {
+                distribution,
+                ..shading.params
+            })
+        });
+        Some(Self { shading, bsdf })
+    }
 }
 
 impl World {
@@ -41,7 +81,7 @@ impl World {
             .materials
             .iter()
             .any(|m| m.alpha_mode != AlphaMode::Opaque);
-        Self {
+        let mut world = Self {
             scene,
             accel,
             lights,
@@ -49,7 +89,43 @@ impl World {
             normal_matrices,
             linear,
             has_alpha,
+            uniform: Vec::new(),
+        };
+        world.uniform = world
+            .scene
+            .materials
+            .iter()
+            .map(|m| UniformMaterial::new(&world, m))
+            .collect();
+        world
+    }
+
+    /// The shading of material `material` where it does not vary over the surface (no
+    /// textures), with microfacet distribution `distribution`: what
+    /// [`shade_material`] gives for any texture coordinates and a white vertex colour.
+    #[inline]
+    pub(crate) fn uniform_shading(
+        &self,
+        material: u32,
+        distribution: Microfacet,
+    ) -> Option<Shading> {
+        let u = self.uniform.get(material as usize)?.as_ref()?;
+        let mut shading = u.shading;
+        shading.params.distribution = distribution;
+        Some(shading)
+    }
+
+    /// The BSDF of `params` (`Bsdf::new`), taken from the material's precomputed one when
+    /// `params` are that material's uniform parameters.
+    #[inline]
+    pub fn bsdf(&self, material: u32, params: &BsdfParams) -> Bsdf {
+        if let Some(Some(u)) = self.uniform.get(material as usize) {
+            let b = &u.bsdf[params.distribution as usize];
+            if b.params() == params {
+                return *b;
+            }
         }
+        Bsdf::new(params)
     }
 }
 

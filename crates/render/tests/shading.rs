@@ -126,3 +126,119 @@ fn normal_maps_tilt_along_tangent_and_bitangent() {
     let n = mapped_normal(Vec3::new(s, 0.0, c), 0.0);
     assert!((n - Vec3::Z).length() < 1e-5, "{n}");
 }
+
+/// `World` shades each material without textures once and keeps its BSDFs: a hit on such a
+/// material must get exactly what `shade_material` and `Bsdf::new` give there, with either
+/// microfacet distribution; a textured material must still see its texture; and parameters
+/// that are not the material's own must not get its precomputed BSDF.
+#[test]
+fn precomputed_materials_shade_as_the_material_at_the_hit() {
+    use glam::Vec2;
+    use pathlight_render::bsdf::{Bsdf, Microfacet};
+    use pathlight_render::surface::shade_material;
+    use pathlight_scene::material::Volume;
+
+    let materials = vec![
+        Material::lambertian("white", Vec3::splat(0.8)),
+        // The glTF default: a rough metal.
+        Material::default(),
+        Material {
+            metallic: 0.0,
+            roughness: 0.3,
+            ior: 1.7,
+            specular_color: Vec3::new(1.0, 0.5, 0.2),
+            ..Material::lambertian("glossy", Vec3::new(0.2, 0.4, 0.6))
+        },
+        Material {
+            metallic: 0.0,
+            roughness: 0.0,
+            specular: 1.0,
+            transmission: 0.9,
+            volume: Some(Volume {
+                thickness: 1.0,
+                thickness_texture: None,
+                attenuation_distance: 2.0,
+                attenuation_color: Vec3::new(0.9, 0.5, 0.1),
+            }),
+            ..Material::lambertian("glass", Vec3::ONE)
+        },
+        Material {
+            base_color_texture: Some(TextureRef::new(0)),
+            ..Material::lambertian("textured", Vec3::splat(0.5))
+        },
+    ];
+    let directions = [
+        (Vec3::new(0.3, -0.2, 0.93), Vec3::new(-0.5, 0.1, 0.86)),
+        (Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.0, 0.8)),
+        (Vec3::new(0.3, -0.2, 0.93), Vec3::new(0.2, 0.1, -0.97)),
+    ];
+    for (m, mat) in materials.iter().enumerate() {
+        let mut s = scene(
+            vec![quad(m as u32, 1.0, 0.0)],
+            materials.clone(),
+            None,
+            Vec3::new(0.0, 0.0, 3.0),
+        );
+        s.textures.push(Texture::constant(
+            "tint",
+            Vec4::new(0.5, 0.25, 1.0, 1.0),
+            ColorSpace::Linear,
+        ));
+        let w = world(s);
+        let ray = Ray::new(Vec3::new(0.2, -0.1, 3.0), -Vec3::Z);
+        let hit = w.accel.intersect(&ray).expect("the quad is hit");
+        for d in [Microfacet::Ggx, Microfacet::Beckmann] {
+            let (surface, got) = Surface::shaded(&w, &ray, &hit, d);
+            // The constant texture makes the texture coordinates irrelevant.
+            let want = shade_material(&w, mat, [Vec2::ZERO; 2], Vec4::ONE, d);
+            assert_eq!(got.params, want.params, "{}", mat.name);
+            assert_eq!(
+                (got.alpha, got.volume, got.sigma_a),
+                (want.alpha, want.volume, want.sigma_a),
+                "{}",
+                mat.name
+            );
+            let (cached, fresh) = (
+                w.bsdf(surface.material, &got.params),
+                Bsdf::new(&got.params),
+            );
+            for (wo, wi) in directions.map(|(a, b)| (a.normalize(), b.normalize())) {
+                assert_eq!(
+                    cached.eval_pdf(wo, wi),
+                    fresh.eval_pdf(wo, wi),
+                    "{}",
+                    mat.name
+                );
+                let u = Vec2::new(0.3, 0.7);
+                assert_eq!(cached.sample(wo, 0.4, u), fresh.sample(wo, 0.4, u));
+            }
+            let other = pathlight_render::bsdf::BsdfParams {
+                roughness: 0.55,
+                ..got.params
+            };
+            assert_eq!(w.bsdf(surface.material, &other).params(), &other);
+        }
+    }
+    // The texture is applied: 0.5 x (0.5, 0.25, 1), up to the texture's 8 bits.
+    let mut s = scene(
+        vec![quad(4, 1.0, 0.0)],
+        materials,
+        None,
+        Vec3::new(0.0, 0.0, 3.0),
+    );
+    s.textures.push(Texture::constant(
+        "tint",
+        Vec4::new(0.5, 0.25, 1.0, 1.0),
+        ColorSpace::Linear,
+    ));
+    let w = world(s);
+    let ray = Ray::new(Vec3::new(0.2, -0.1, 3.0), -Vec3::Z);
+    let hit = w.accel.intersect(&ray).unwrap();
+    let (_, shading) = Surface::shaded(&w, &ray, &hit, Microfacet::Ggx);
+    let want = Vec3::new(0.25, 0.125, 0.5);
+    assert!(
+        shading.params.base_color.abs_diff_eq(want, 0.002),
+        "{}",
+        shading.params.base_color
+    );
+}

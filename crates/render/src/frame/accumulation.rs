@@ -36,10 +36,10 @@ pub struct PixelStats {
 }
 
 impl PixelStats {
-    /// Adds one sample.
+    /// The statistics of one sample.
     #[inline]
-    pub fn add(&mut self, direct: Vec3, indirect: Vec3) {
-        let one = PixelStats {
+    pub fn one(direct: Vec3, indirect: Vec3) -> Self {
+        PixelStats {
             n: 1,
             direct: Moments {
                 mean: direct,
@@ -50,14 +50,24 @@ impl PixelStats {
                 m2: Vec3::ZERO,
             },
             radiance_m2: Vec3::ZERO,
-        };
-        self.merge(&one);
+        }
+    }
+
+    /// Adds one sample.
+    #[inline]
+    pub fn add(&mut self, direct: Vec3, indirect: Vec3) {
+        self.merge(&Self::one(direct, indirect));
     }
 
     /// Merges the statistics of another batch of samples of this pixel.
     #[inline]
     pub fn merge(&mut self, b: &PixelStats) {
         if b.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            // What the general formulas below give for finite values.
+            *self = *b;
             return;
         }
         let na = self.n;

@@ -3,7 +3,7 @@
 //! is radiance; or as linear values for EXR files.
 
 use glam::{Vec3, Vec4};
-use pathlight_core::color::{linear_to_srgb8, luminance};
+use pathlight_core::color::{luminance, Srgb8Encoder};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -182,48 +182,62 @@ impl Sources<'_> {
             DisplayMode::Samples => (0.0, self.history.par_iter().map(|h| h.n).max().unwrap_or(0)),
             _ => (0.0, 0),
         };
-        out.par_chunks_mut(4 * 256)
-            .enumerate()
-            .for_each(|(c, chunk)| {
-                for (k, px) in chunk.chunks_exact_mut(4).enumerate() {
-                    let i = c * 256 + k;
-                    let v = self.value(mode, i);
-                    let rgb = match mode {
-                        m if m.is_radiance() => {
-                            let t = tonemap(v * display.exposure, display.tonemap);
-                            t.to_array().map(linear_to_srgb8)
-                        }
-                        DisplayMode::Albedo | DisplayMode::BounceAlbedo => {
-                            v.to_array().map(linear_to_srgb8)
-                        }
-                        DisplayMode::Normal | DisplayMode::BounceDirection => {
-                            let zero = v == Vec3::ZERO;
-                            let u = if zero { Vec3::ZERO } else { v * 0.5 + 0.5 };
-                            unorm8(u)
-                        }
-                        DisplayMode::Depth => {
-                            unorm8(Vec3::splat(if v.x.is_finite() && max_depth > 0.0 {
-                                1.0 - 0.9 * v.x / max_depth
-                            } else {
-                                0.0
-                            }))
-                        }
-                        DisplayMode::Motion => {
-                            unorm8(Vec3::new(0.5 + v.x / 32.0, 0.5 + v.y / 32.0, 0.5))
-                        }
-                        DisplayMode::Variance => {
-                            let h = &self.history[i];
-                            let relative = luminance(v).max(0.0).sqrt()
-                                / (luminance(h.mean()).max(0.0) + 1e-3);
-                            viridis(relative)
-                        }
-                        DisplayMode::Samples => unorm8(Vec3::splat(v.x / max_n.max(1) as f32)),
-                        _ => unorm8(v),
-                    };
-                    px.copy_from_slice(&[rgb[0], rgb[1], rgb[2], 255]);
-                }
-            });
+        let srgb = Srgb8Encoder::new();
+        let radiance = |v: Vec3| srgb.encode3(tonemap(v * display.exposure, display.tonemap));
+        match mode {
+            // The usual mode, with its own loop.
+            DisplayMode::Final => fill(out, |i| radiance(self.history[i].mean())),
+            m if m.is_radiance() => fill(out, |i| radiance(self.value(mode, i))),
+            DisplayMode::Albedo | DisplayMode::BounceAlbedo => {
+                fill(out, |i| srgb.encode3(self.value(mode, i)))
+            }
+            DisplayMode::Normal | DisplayMode::BounceDirection => fill(out, |i| {
+                let v = self.value(mode, i);
+                unorm8(if v == Vec3::ZERO {
+                    Vec3::ZERO
+                } else {
+                    v * 0.5 + 0.5
+                })
+            }),
+            DisplayMode::Depth => fill(out, |i| {
+                let d = self.value(mode, i).x;
+                unorm8(Vec3::splat(if d.is_finite() && max_depth > 0.0 {
+                    1.0 - 0.9 * d / max_depth
+                } else {
+                    0.0
+                }))
+            }),
+            DisplayMode::Motion => fill(out, |i| {
+                let v = self.value(mode, i);
+                unorm8(Vec3::new(0.5 + v.x / 32.0, 0.5 + v.y / 32.0, 0.5))
+            }),
+            DisplayMode::Variance => fill(out, |i| {
+                let v = self.value(mode, i);
+                let relative = luminance(v).max(0.0).sqrt()
+                    / (luminance(self.history[i].mean()).max(0.0) + 1e-3);
+                viridis(relative)
+            }),
+            DisplayMode::Samples => fill(out, |i| {
+                unorm8(Vec3::splat(self.value(mode, i).x / max_n.max(1) as f32))
+            }),
+            _ => fill(out, |i| unorm8(self.value(mode, i))),
+        }
     }
+}
+
+/// Pixels per parallel task of the display pass.
+const CHUNK: usize = 1024;
+
+/// Writes `rgb(i)` and alpha 255 to each RGBA pixel `i` of `out`, in parallel.
+fn fill(out: &mut [u8], rgb: impl Fn(usize) -> [u8; 3] + Sync) {
+    out.par_chunks_mut(4 * CHUNK)
+        .enumerate()
+        .for_each(|(c, chunk)| {
+            for (k, px) in chunk.chunks_exact_mut(4).enumerate() {
+                let [r, g, b] = rgb(c * CHUNK + k);
+                px.copy_from_slice(&[r, g, b, 255]);
+            }
+        });
 }
 
 /// A value in [0, 1] (clamped) to 8 bits, without encoding.

@@ -86,15 +86,14 @@ impl GBuffer {
     }
 }
 
-/// The primary visibility pass for one pixel: traces sample `index` of pixel (`x`, `y`) to its
-/// first surface. `previous` is the camera of the previous frame (motion vectors). Returns the
-/// G-buffer pixel, the hit for the lighting pass and the rays traced.
+/// The primary visibility pass for one pixel: traces `sample`, the camera sample of pixel
+/// `sample index` ([`PathTracer::camera_sample`]), to its first surface. `previous` is the
+/// camera of the previous frame (motion vectors). Returns the G-buffer pixel, the hit for the
+/// lighting pass and the rays traced.
 #[inline]
 pub fn primary(
     tracer: &PathTracer,
-    x: u32,
-    y: u32,
-    index: u32,
+    sample: CameraSample,
     previous: Option<&Camera>,
 ) -> (GPixel, PrimaryHit, u32) {
     let camera = tracer.camera;
@@ -102,7 +101,7 @@ pub fn primary(
         ray,
         mut rng,
         sampler,
-    } = tracer.camera_sample(x, y, index);
+    } = sample;
     let mut rays = 0;
     let first = tracer.intersect(ray, &mut rng, &mut rays);
     let now_and_then = |at: &dyn Fn(&Camera) -> Option<Vec2>| {

@@ -36,8 +36,7 @@ pub fn lighting(
         hit.sampler.clone(),
         hit.rng.clone(),
     );
-    let mut stats = PixelStats::default();
-    stats.add(s.direct, s.indirect);
+    let mut stats = PixelStats::one(s.direct, s.indirect);
     let mut rays = s.rays as u64;
     for k in 1..spp {
         let more = tracer.sample_pixel(x, y, index + k);

@@ -319,8 +319,8 @@ fn trace(
         .zip(lighting.par_chunks_mut(RUN))
         .enumerate()
         .map_init(
-            || Vec::with_capacity(RUN),
-            |hits, (b, (gpixels, lpixels))| {
+            || (Vec::with_capacity(RUN), Vec::with_capacity(RUN)),
+            |(cameras, hits), (b, (gpixels, lpixels))| {
                 // The pixels of the run, in order (no division per pixel).
                 let start = b * RUN;
                 let pixels = || {
@@ -336,9 +336,17 @@ fn trace(
                 };
                 let mut rays = 0u64;
                 let t0 = Instant::now();
+                // The run's camera samples first, in a loop of independent iterations, so that
+                // their hash and Sobol latency chains overlap instead of stalling each trace.
+                cameras.clear();
+                cameras.extend(
+                    pixels()
+                        .take(gpixels.len())
+                        .map(|(x, y)| tracer.camera_sample(x, y, index)),
+                );
                 hits.clear();
-                for (g, (x, y)) in gpixels.iter_mut().zip(pixels()) {
-                    let (pixel, hit, r) = gbuffer::primary(tracer, x, y, index, previous);
+                for (g, sample) in gpixels.iter_mut().zip(cameras.drain(..)) {
+                    let (pixel, hit, r) = gbuffer::primary(tracer, sample, previous);
                     *g = pixel;
                     hits.push(hit);
                     rays += r as u64;
