@@ -172,7 +172,8 @@ fn precomputed_materials_shade_as_the_material_at_the_hit() {
         (Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.0, 0.8)),
         (Vec3::new(0.3, -0.2, 0.93), Vec3::new(0.2, 0.1, -0.97)),
     ];
-    for (m, mat) in materials.iter().enumerate() {
+    // A quad of material `m` (the texture is a constant tint) and a ray that hits it.
+    let quad_hit = |m: usize| {
         let mut s = scene(
             vec![quad(m as u32, 1.0, 0.0)],
             materials.clone(),
@@ -187,6 +188,10 @@ fn precomputed_materials_shade_as_the_material_at_the_hit() {
         let w = world(s);
         let ray = Ray::new(Vec3::new(0.2, -0.1, 3.0), -Vec3::Z);
         let hit = w.accel.intersect(&ray).expect("the quad is hit");
+        (w, ray, hit)
+    };
+    for (m, mat) in materials.iter().enumerate() {
+        let (w, ray, hit) = quad_hit(m);
         for d in [Microfacet::Ggx, Microfacet::Beckmann] {
             let (surface, got) = Surface::shaded(&w, &ray, &hit, d);
             // The constant texture makes the texture coordinates irrelevant.
@@ -220,20 +225,7 @@ fn precomputed_materials_shade_as_the_material_at_the_hit() {
         }
     }
     // The texture is applied: 0.5 x (0.5, 0.25, 1), up to the texture's 8 bits.
-    let mut s = scene(
-        vec![quad(4, 1.0, 0.0)],
-        materials,
-        None,
-        Vec3::new(0.0, 0.0, 3.0),
-    );
-    s.textures.push(Texture::constant(
-        "tint",
-        Vec4::new(0.5, 0.25, 1.0, 1.0),
-        ColorSpace::Linear,
-    ));
-    let w = world(s);
-    let ray = Ray::new(Vec3::new(0.2, -0.1, 3.0), -Vec3::Z);
-    let hit = w.accel.intersect(&ray).unwrap();
+    let (w, ray, hit) = quad_hit(4);
     let (_, shading) = Surface::shaded(&w, &ray, &hit, Microfacet::Ggx);
     let want = Vec3::new(0.25, 0.125, 0.5);
     assert!(
