@@ -86,8 +86,8 @@ impl GBuffer {
     }
 }
 
-/// The primary visibility pass for one pixel: traces `sample`, the camera sample of pixel
-/// `sample index` ([`PathTracer::camera_sample`]), to its first surface. `previous` is the
+/// The primary visibility pass for one pixel: traces `sample`, the pixel's camera sample
+/// ([`PathTracer::camera_sample`]), to its first surface. `previous` is the
 /// camera of the previous frame (motion vectors). Returns the G-buffer pixel, the hit for the
 /// lighting pass and the rays traced.
 #[inline]
