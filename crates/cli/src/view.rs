@@ -43,6 +43,10 @@ pub struct ViewArgs {
     #[arg(long, value_name = "FILE", hide = true)]
     pub report: Option<PathBuf>,
 
+    /// Test hook: JSON file with the window's state, rewritten whenever it changes.
+    #[arg(long, value_name = "FILE", hide = true)]
+    pub state: Option<PathBuf>,
+
     /// Test hook: seconds the frozen window stays open.
     #[arg(long, value_name = "SECONDS", hide = true, default_value_t = 10.0)]
     pub close_after: f64,
@@ -66,6 +70,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         scale: args.scale,
         exit_after_frames: args.exit_after_frames,
         report: args.report.clone(),
+        state: args.state.clone(),
         close_after: Duration::from_secs_f64(args.close_after.clamp(0.0, 3600.0)),
     };
     pathlight_viewer::run(world, config, options)?;

@@ -4,8 +4,13 @@
 //! where the viewer says it is, pixel for pixel (within rounding), and that the image is a
 //! Cornell box (red wall left, green wall right), not blank or garbage.
 //!
-//! Needs `Xvfb` (Debian: xvfb) and Mesa's OpenGL; without Xvfb the test prints a note and
-//! passes, except under CI (`CI` set), where `.ci/run` installs them.
+//! A second test drives the live viewer with the mouse and the keyboard through `xdotool`
+//! (X's XTEST extension, as a user's devices would) and checks what each input did: a display
+//! mode key changes the image on screen, a drag orbits the camera around its target, Home
+//! brings it back, F and W fly, Space pauses and Esc quits.
+//!
+//! Needs `Xvfb` (Debian: xvfb), `xdotool` and Mesa's OpenGL; without them the tests print a
+//! note and pass, except under CI (`CI` set), where `.ci/run` installs them.
 
 mod common;
 
@@ -23,11 +28,105 @@ impl Drop for Killer {
     }
 }
 
-fn xvfb() -> Option<PathBuf> {
+/// The program `name` on the PATH.
+fn program(name: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
     std::env::split_paths(&path)
-        .map(|d| d.join("Xvfb"))
+        .map(|d| d.join(name))
         .find(|p| p.is_file())
+}
+
+/// `program(name)`, or `None` after a note (a failure under CI, which must install it).
+fn needed(name: &str) -> Option<PathBuf> {
+    let found = program(name);
+    if found.is_none() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI must install {name} (.ci/run does)"
+        );
+        eprintln!("note: no {name} on PATH; viewer test skipped");
+    }
+    found
+}
+
+/// A running X server (Xvfb) keeping its screen in an XWD file.
+struct XServer {
+    _server: Killer,
+    /// The display number (`:N`).
+    display: u32,
+    /// The screen's framebuffer file.
+    fb: PathBuf,
+}
+
+impl XServer {
+    /// Starts Xvfb with a 1280x800 screen whose framebuffer is written in `dir`, on a display
+    /// number it picks itself (`-displayfd`: tests running at once get different ones).
+    fn start(xvfb: &Path, dir: &Path) -> Self {
+        let mut server = Killer(
+            Command::new(xvfb)
+                .args([
+                    "-displayfd",
+                    "1",
+                    "-screen",
+                    "0",
+                    "1280x800x24",
+                    "-nolisten",
+                    "tcp",
+                    "-fbdir",
+                ])
+                .arg(dir)
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        );
+        // Xvfb writes the display number once it accepts clients.
+        let mut line = String::new();
+        std::io::BufRead::read_line(
+            &mut std::io::BufReader::new(server.0.stdout.take().unwrap()),
+            &mut line,
+        )
+        .unwrap();
+        let display = line
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("Xvfb did not start: {line:?}"));
+        let fb = dir.join("Xvfb_screen0");
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while !fb.exists() {
+            assert!(Instant::now() < deadline, "Xvfb wrote no framebuffer");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        Self {
+            _server: server,
+            display,
+            fb,
+        }
+    }
+
+    /// `pathlight view` with `args` on this display.
+    fn viewer(&self, args: &[&str], extra: &Path) -> Killer {
+        Killer(
+            Command::new(env!("CARGO_BIN_EXE_pathlight"))
+                .arg("view")
+                .args(args)
+                .arg(extra)
+                .env("DISPLAY", format!(":{}", self.display))
+                .env("LIBGL_ALWAYS_SOFTWARE", "1")
+                .stdout(Stdio::null())
+                .stderr(Stdio::inherit())
+                .spawn()
+                .unwrap(),
+        )
+    }
+}
+
+/// A fresh folder for one test's files.
+fn test_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pathlight-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
 }
 
 /// An RGB screenshot.
@@ -66,67 +165,26 @@ fn read_xwd(path: &Path) -> Screen {
 
 #[test]
 fn the_viewer_window_shows_the_rendered_image() {
-    let Some(xvfb) = xvfb() else {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI must install xvfb (.ci/run does)"
-        );
-        eprintln!("note: no Xvfb on PATH; viewer test skipped");
+    let Some(xvfb) = needed("Xvfb") else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("pathlight-view-test-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    // A display number nobody uses.
-    let display = (90..140)
-        .find(|n| !Path::new(&format!("/tmp/.X{n}-lock")).exists())
-        .expect("a free X display");
-    let _server = Killer(
-        Command::new(xvfb)
-            .args([
-                &format!(":{display}"),
-                "-screen",
-                "0",
-                "1280x800x24",
-                "-nolisten",
-                "tcp",
-                "-fbdir",
-            ])
-            .arg(&dir)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let fb = dir.join("Xvfb_screen0");
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !fb.exists() {
-        assert!(Instant::now() < deadline, "Xvfb did not start");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-
+    let dir = test_dir("view-test");
+    let x = XServer::start(&xvfb, &dir);
+    let fb = x.fb.clone();
     let report = dir.join("report.json");
-    let _viewer = Killer(
-        Command::new(env!("CARGO_BIN_EXE_pathlight"))
-            .args([
-                "view",
-                "--window",
-                "900x560",
-                "--scale",
-                "1",
-                "--exit-after-frames",
-                "4",
-                "--close-after",
-                "60",
-                "--report",
-            ])
-            .arg(&report)
-            .env("DISPLAY", format!(":{display}"))
-            .env("LIBGL_ALWAYS_SOFTWARE", "1")
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap(),
+    let _viewer = x.viewer(
+        &[
+            "--window",
+            "900x560",
+            "--scale",
+            "1",
+            "--exit-after-frames",
+            "4",
+            "--close-after",
+            "60",
+            "--report",
+        ],
+        &report,
     );
     let deadline = Instant::now() + Duration::from_secs(180);
     while !report.exists() {
@@ -237,4 +295,167 @@ fn the_viewer_window_shows_the_rendered_image() {
     if std::env::var_os("PATHLIGHT_KEEP_SCREENSHOT").is_none() {
         let _ = std::fs::remove_dir_all(&dir);
     }
+}
+
+/// The viewer's state as its `--state` hook last wrote it.
+fn read_state(path: &Path) -> Option<serde_json::Value> {
+    serde_json::from_slice(&std::fs::read(path).ok()?).ok()
+}
+
+fn vec3(v: &serde_json::Value) -> [f64; 3] {
+    let a = v.as_array().expect("an array of three numbers");
+    [0, 1, 2].map(|k| a[k].as_f64().unwrap())
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// Spread (the largest, over the channels, of the largest minus the smallest level) and mean
+/// of the screen's pixels in a square of half-size `r` around (`cx`, `cy`).
+fn patch(screen: &Screen, cx: usize, cy: usize, r: usize) -> (u8, [f64; 3]) {
+    let (mut lo, mut hi, mut sum, mut n) = ([255u8; 3], [0u8; 3], [0f64; 3], 0f64);
+    for y in cy - r..cy + r {
+        for x in cx - r..cx + r {
+            let p = screen.rgb[y * screen.width + x];
+            for c in 0..3 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+                sum[c] += p[c] as f64;
+            }
+            n += 1.0;
+        }
+    }
+    let spread = (0..3).map(|c| hi[c] - lo[c]).max().unwrap();
+    (spread, sum.map(|v| v / n))
+}
+
+#[test]
+fn mouse_and_keys_drive_the_viewer() {
+    let (Some(xvfb), Some(xdotool)) = (needed("Xvfb"), needed("xdotool")) else {
+        return;
+    };
+    let dir = test_dir("view-input-test");
+    let x = XServer::start(&xvfb, &dir);
+    let state = dir.join("state.json");
+    let mut viewer = x.viewer(
+        &["--window", "900x560", "--scale", "0.5", "--state"],
+        &state,
+    );
+
+    let wait_for = |what: &str, done: &dyn Fn(&serde_json::Value) -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(120);
+        loop {
+            let s = read_state(&state);
+            if let Some(s) = s.as_ref().filter(|s| done(s)) {
+                return s.clone();
+            }
+            assert!(Instant::now() < deadline, "{what}: not seen; state {s:?}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    let frames = |s: &serde_json::Value| s["frames_shown"].as_u64().unwrap();
+    let xdo = |args: &[&str]| {
+        let out = Command::new(&xdotool)
+            .args(args)
+            .env("DISPLAY", format!(":{}", x.display))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "xdotool {args:?}: {out:?}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+
+    let s = wait_for("the first frames", &|s| frames(s) >= 3);
+    // The keyboard goes to the viewer's window (there is no window manager to give it).
+    let window = xdo(&["search", "--sync", "--name", "^pathlight"]);
+    let window = window
+        .lines()
+        .next()
+        .expect("the viewer's window")
+        .to_owned();
+    xdo(&["windowfocus", "--sync", &window]);
+    // The image's centre on the screen (the window sits at the screen's origin, or where
+    // the viewer says).
+    let rect = vec3(&s["image_rect"]);
+    let size = s["image_rect"][3].as_f64().unwrap();
+    let inner = s["window_inner"]
+        .as_array()
+        .map_or([0.0; 3], |_| vec3(&s["window_inner"]));
+    let (cx, cy) = (
+        (inner[0] + rect[0] + rect[2] / 2.0) as usize,
+        (inner[1] + rect[1] + size / 2.0) as usize,
+    );
+
+    // Key 6: the albedo display mode. The back wall, shaded (and noisy) before, is then one
+    // flat colour on screen, its base colour.
+    let (_, before) = patch(&read_xwd(&x.fb), cx, cy - 40, 12);
+    xdo(&["key", "6"]);
+    let s = wait_for("key 6: albedo", &|s| s["display"] == "albedo");
+    let n = frames(&s);
+    wait_for("albedo frames", &|s| frames(s) >= n + 3);
+    std::thread::sleep(Duration::from_millis(500));
+    let (spread_after, colour) = patch(&read_xwd(&x.fb), cx, cy - 40, 12);
+    assert!(
+        spread_after <= 2,
+        "the albedo view of the back wall is flat: {spread_after} ({colour:?})"
+    );
+    let change = (0..3)
+        .map(|c| (colour[c] - before[c]).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        change > 30.0,
+        "the screen did not change to the albedo view: {before:?} -> {colour:?}"
+    );
+
+    // A drag orbits: the camera moves, its target and its distance to it stay.
+    let start = wait_for("still", &|_| true);
+    let (p0, t0) = (vec3(&start["position"]), vec3(&start["target"]));
+    xdo(&["mousemove", &cx.to_string(), &cy.to_string()]);
+    xdo(&["mousedown", "1"]);
+    for k in 1..=10 {
+        xdo(&["mousemove", &(cx + 12 * k).to_string(), &cy.to_string()]);
+        std::thread::sleep(Duration::from_millis(30));
+    }
+    xdo(&["mouseup", "1"]);
+    let s = wait_for("the drag", &|s| distance(vec3(&s["position"]), p0) > 0.05);
+    let (p1, t1) = (vec3(&s["position"]), vec3(&s["target"]));
+    assert!(
+        distance(t1, t0) < 1e-4,
+        "the target moved: {t0:?} -> {t1:?}"
+    );
+    let (r0, r1) = (distance(p0, t0), distance(p1, t1));
+    assert!((r1 - r0).abs() < 1e-3 * r0, "orbit radius {r0} -> {r1}");
+
+    // Home: back to the start.
+    xdo(&["key", "Home"]);
+    wait_for("Home", &|s| distance(vec3(&s["position"]), p0) < 1e-4);
+
+    // F: fly; holding W moves forward (toward the old target).
+    xdo(&["key", "f"]);
+    wait_for("F: fly", &|s| s["navigation"] == "fly");
+    xdo(&["keydown", "w"]);
+    std::thread::sleep(Duration::from_millis(400));
+    xdo(&["keyup", "w"]);
+    let s = wait_for("W", &|s| distance(vec3(&s["position"]), p0) > 1e-3);
+    let p2 = vec3(&s["position"]);
+    let (ahead, moved) = (distance(p0, t0), distance(p2, t0));
+    assert!(
+        moved < ahead,
+        "W flew away from the view direction: {p0:?} -> {p2:?}"
+    );
+
+    // Space pauses; Esc closes the window and ends the program.
+    xdo(&["key", "space"]);
+    wait_for("Space: pause", &|s| s["paused"] == true);
+    xdo(&["key", "Escape"]);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "Esc did not close the viewer");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(status.success(), "the viewer exited with {status}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

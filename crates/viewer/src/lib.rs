@@ -76,6 +76,10 @@ pub struct ViewerOptions {
     /// frame shown, saved as `<report>.png`.
     pub report: Option<PathBuf>,
     pub close_after: Duration,
+    /// Test hook: a JSON file rewritten whenever the window's state changes (display mode,
+    /// camera, pause, frames shown, where the image is), so that a test driving the mouse and
+    /// keyboard can see what they did.
+    pub state: Option<PathBuf>,
 }
 
 impl Default for ViewerOptions {
@@ -87,6 +91,7 @@ impl Default for ViewerOptions {
             exit_after_frames: None,
             report: None,
             close_after: Duration::from_secs(10),
+            state: None,
         }
     }
 }
@@ -142,6 +147,8 @@ pub struct Viewer {
     frozen_at: Option<Instant>,
     screenshots: u32,
     message: String,
+    /// What the state hook last wrote.
+    last_state: String,
 }
 
 impl Viewer {
@@ -179,6 +186,7 @@ impl Viewer {
             frozen_at: None,
             screenshots: 0,
             message: String::new(),
+            last_state: String::new(),
         }
     }
 
@@ -351,6 +359,33 @@ impl Viewer {
         response.rect
     }
 
+    /// The state hook: the window's state as JSON in [`ViewerOptions::state`] when it changed.
+    fn write_state(&mut self, ctx: &egui::Context, image_rect: egui::Rect) {
+        let Some(path) = &self.options.state else {
+            return;
+        };
+        let ppp = ctx.pixels_per_point();
+        let r = image_rect;
+        let inner = ctx.input(|i| i.viewport().inner_rect);
+        let n = &self.navigation;
+        let json = serde_json::json!({
+            "frames_shown": self.frames_shown,
+            "display": self.config.display.mode.name(),
+            "paused": self.paused,
+            "accumulate": self.config.frame.accumulate,
+            "navigation": match n.mode { Mode::Orbit => "orbit", Mode::Fly => "fly" },
+            "position": n.position.to_array(),
+            "target": n.target().to_array(),
+            "image_rect": [r.min.x * ppp, r.min.y * ppp, r.width() * ppp, r.height() * ppp],
+            "window_inner": inner.map(|i| [i.min.x * ppp, i.min.y * ppp, i.width() * ppp, i.height() * ppp]),
+        })
+        .to_string();
+        if json != self.last_state {
+            let _ = pathlight_render::output::write_atomic(path, json.as_bytes());
+            self.last_state = json;
+        }
+    }
+
     /// The test hook: once enough frames are shown, freeze, report and close later.
     fn test_hook(&mut self, ctx: &egui::Context, image_rect: egui::Rect) {
         let Some(n) = self.options.exit_after_frames else {
@@ -412,6 +447,7 @@ impl eframe::App for Viewer {
         // Everything the window changed this pass goes to the render thread.
         self.config.camera = self.navigation.camera(&self.config.camera);
         self.worker.set_config(&self.config);
+        self.write_state(&ctx, rect);
         self.test_hook(&ctx, rect);
     }
 }
