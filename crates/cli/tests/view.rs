@@ -202,35 +202,13 @@ fn the_viewer_window_shows_the_rendered_image() {
         .unwrap()
         .to_rgb8();
     let (fw, fh) = (frame.width() as usize, frame.height() as usize);
-    let rect: Vec<f64> = r["image_rect"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let window: Vec<f64> = r["window_inner"].as_array().map_or(vec![0.0; 4], |a| {
-        a.iter().map(|v| v.as_f64().unwrap()).collect()
-    });
+    let (rect, window) = placement(&r);
     assert_eq!(
         (rect[2].round() as usize, rect[3].round() as usize),
         (fw, fh)
     );
 
     // The frame itself is a Cornell box: the left wall red, the right wall green.
-    let mean =
-        |x0: usize, x1: usize, y0: usize, y1: usize, px: &dyn Fn(usize, usize) -> [u8; 3]| {
-            let mut s = [0f64; 3];
-            let n = ((x1 - x0) * (y1 - y0)) as f64;
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let p = px(x, y);
-                    for c in 0..3 {
-                        s[c] += p[c] as f64 / n;
-                    }
-                }
-            }
-            s
-        };
     let in_frame = |x: usize, y: usize| frame.get_pixel(x as u32, y as u32).0;
     let left = mean(fw / 20, fw / 8, fh / 3, 2 * fh / 3, &in_frame);
     let right = mean(fw - fw / 8, fw - fw / 20, fh / 3, 2 * fh / 3, &in_frame);
@@ -302,32 +280,73 @@ fn read_state(path: &Path) -> Option<serde_json::Value> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
+/// The `N` numbers of a JSON array.
+fn numbers<const N: usize>(v: &serde_json::Value) -> [f64; N] {
+    let a = v
+        .as_array()
+        .unwrap_or_else(|| panic!("an array of {N} numbers: {v}"));
+    std::array::from_fn(|k| a[k].as_f64().unwrap())
+}
+
 fn vec3(v: &serde_json::Value) -> [f64; 3] {
-    let a = v.as_array().expect("an array of three numbers");
-    [0, 1, 2].map(|k| a[k].as_f64().unwrap())
+    numbers(v)
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
 }
 
+/// The mean colour of the pixels `px(x, y)` for `x` in `x0..x1` and `y` in `y0..y1`.
+fn mean(
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+    px: &dyn Fn(usize, usize) -> [u8; 3],
+) -> [f64; 3] {
+    let mut s = [0f64; 3];
+    let n = ((x1 - x0) * (y1 - y0)) as f64;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let p = px(x, y);
+            for c in 0..3 {
+                s[c] += p[c] as f64 / n;
+            }
+        }
+    }
+    s
+}
+
+/// Where a hook's JSON says the image is in the window and the window on the screen
+/// (`[x, y, width, height]`, physical pixels; the window at the origin when unknown).
+fn placement(v: &serde_json::Value) -> ([f64; 4], [f64; 4]) {
+    let window = &v["window_inner"];
+    (
+        numbers(&v["image_rect"]),
+        if window.is_array() {
+            numbers(window)
+        } else {
+            [0.0; 4]
+        },
+    )
+}
+
 /// Spread (the largest, over the channels, of the largest minus the smallest level) and mean
 /// of the screen's pixels in a square of half-size `r` around (`cx`, `cy`).
 fn patch(screen: &Screen, cx: usize, cy: usize, r: usize) -> (u8, [f64; 3]) {
-    let (mut lo, mut hi, mut sum, mut n) = ([255u8; 3], [0u8; 3], [0f64; 3], 0f64);
+    let px = |x: usize, y: usize| screen.rgb[y * screen.width + x];
+    let (mut lo, mut hi) = ([255u8; 3], [0u8; 3]);
     for y in cy - r..cy + r {
         for x in cx - r..cx + r {
-            let p = screen.rgb[y * screen.width + x];
+            let p = px(x, y);
             for c in 0..3 {
                 lo[c] = lo[c].min(p[c]);
                 hi[c] = hi[c].max(p[c]);
-                sum[c] += p[c] as f64;
             }
-            n += 1.0;
         }
     }
     let spread = (0..3).map(|c| hi[c] - lo[c]).max().unwrap();
-    (spread, sum.map(|v| v / n))
+    (spread, mean(cx - r, cx + r, cy - r, cy + r, &px))
 }
 
 #[test]
@@ -376,14 +395,10 @@ fn mouse_and_keys_drive_the_viewer() {
     xdo(&["windowfocus", "--sync", &window]);
     // The image's centre on the screen (the window sits at the screen's origin, or where
     // the viewer says).
-    let rect = vec3(&s["image_rect"]);
-    let size = s["image_rect"][3].as_f64().unwrap();
-    let inner = s["window_inner"]
-        .as_array()
-        .map_or([0.0; 3], |_| vec3(&s["window_inner"]));
+    let (rect, inner) = placement(&s);
     let (cx, cy) = (
         (inner[0] + rect[0] + rect[2] / 2.0) as usize,
-        (inner[1] + rect[1] + size / 2.0) as usize,
+        (inner[1] + rect[1] + rect[3] / 2.0) as usize,
     );
 
     // Key 6: the albedo display mode. The back wall, shaded (and noisy) before, is then one

@@ -364,9 +364,7 @@ impl Viewer {
         let Some(path) = &self.options.state else {
             return;
         };
-        let ppp = ctx.pixels_per_point();
-        let r = image_rect;
-        let inner = ctx.input(|i| i.viewport().inner_rect);
+        let (image, window) = placement(ctx, image_rect);
         let n = &self.navigation;
         let json = serde_json::json!({
             "frames_shown": self.frames_shown,
@@ -376,8 +374,8 @@ impl Viewer {
             "navigation": match n.mode { Mode::Orbit => "orbit", Mode::Fly => "fly" },
             "position": n.position.to_array(),
             "target": n.target().to_array(),
-            "image_rect": [r.min.x * ppp, r.min.y * ppp, r.width() * ppp, r.height() * ppp],
-            "window_inner": inner.map(|i| [i.min.x * ppp, i.min.y * ppp, i.width() * ppp, i.height() * ppp]),
+            "image_rect": image,
+            "window_inner": window,
         })
         .to_string();
         if json != self.last_state {
@@ -406,16 +404,15 @@ impl Viewer {
         self.set_paused(true);
         if let (Some(path), Some((report, w, h))) = (&self.options.report, &self.shown) {
             let ppp = ctx.pixels_per_point();
-            let r = image_rect;
-            let inner = ctx.input(|i| i.viewport().inner_rect);
+            let (image, window) = placement(ctx, image_rect);
             let png = path.with_extension("png");
             let _ = pathlight_render::output::write_atomic(
                 &png,
                 &pathlight_render::output::encode_rgba8_png(*w, *h, &self.shown_rgba),
             );
             let json = serde_json::json!({
-                "image_rect": [r.min.x * ppp, r.min.y * ppp, r.width() * ppp, r.height() * ppp],
-                "window_inner": inner.map(|i| [i.min.x * ppp, i.min.y * ppp, i.width() * ppp, i.height() * ppp]),
+                "image_rect": image,
+                "window_inner": window,
                 "pixels_per_point": ppp,
                 "frame_png": png,
                 "width": w,
@@ -426,6 +423,15 @@ impl Viewer {
             let _ = pathlight_render::output::write_atomic(path, json.to_string().as_bytes());
         }
     }
+}
+
+/// Where the image is in the window and where the window is on the screen (when the platform
+/// tells), as `[x, y, width, height]` in physical pixels: what the test hooks report.
+fn placement(ctx: &egui::Context, image_rect: egui::Rect) -> ([f32; 4], Option<[f32; 4]>) {
+    let ppp = ctx.pixels_per_point();
+    let pixels = |r: egui::Rect| [r.min.x, r.min.y, r.width(), r.height()].map(|v| v * ppp);
+    let inner = ctx.input(|i| i.viewport().inner_rect);
+    (pixels(image_rect), inner.map(pixels))
 }
 
 impl eframe::App for Viewer {
