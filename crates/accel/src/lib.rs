@@ -22,7 +22,7 @@ pub use embree::{EmbreeAccel, EmbreeError, EmbreeOptions};
 pub use embree3;
 pub use geometry::SceneTriangles;
 pub use instanced::InstancedBvh;
-pub use native::{BuildStats, Isa, NativeBvh};
+pub use native::{BuildStats, Isa, NativeBvh, PACKET};
 pub use ray::{Hit, Ray};
 pub use rays::{RayKind, RaySets};
 

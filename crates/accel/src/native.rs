@@ -6,6 +6,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::bvh::aabb::Aabb;
+use crate::bvh::packet;
+pub use crate::bvh::packet::PACKET;
 use crate::bvh::wide::{Node, WIDTH};
 use crate::bvh::{build, traverse, wide};
 use crate::geometry::SceneTriangles;
@@ -182,6 +184,25 @@ impl NativeBvh {
         self.isa
     }
 
+    /// The closest hits of eight rays traced together as one packet: exactly the hits
+    /// [`intersect`](Accel::intersect) gives each ray, found with one traversal. `None` when
+    /// the rays are not coherent enough to share one: they must share the dominant axis of
+    /// their directions and the sign of every direction component (camera rays of
+    /// neighbouring pixels nearly always do), and have non-zero, finite directions.
+    pub fn intersect_packet(&self, rays: &[Ray; PACKET]) -> Option<[Option<Hit>; PACKET]> {
+        let (n, p) = (&self.nodes[..], &self.packets[..]);
+        let mut out = [None; PACKET];
+        let traced = match self.isa {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Isa::Avx2` is only chosen when the CPU reports AVX2 (`with_isa`).
+            Isa::Avx2 => unsafe { avx2::closest_packet(n, p, rays, &mut out) },
+            #[cfg(target_arch = "x86_64")]
+            Isa::Sse2 => packet::closest::<Pair<Sse4>, Sse4>(n, p, rays, &mut out),
+            _ => packet::closest::<Pair<Scalar4>, Scalar4>(n, p, rays, &mut out),
+        };
+        traced.then(|| out.map(|r| self.hit(r)))
+    }
+
     #[inline]
     fn hit(&self, r: Option<(u32, f32, f32, f32)>) -> Option<Hit> {
         r.map(|(id, t, u, v)| {
@@ -213,6 +234,16 @@ mod avx2 {
     }
 
     #[target_feature(enable = "avx2")]
+    pub(super) fn closest_packet(
+        nodes: &[Node<WIDTH>],
+        packets: &[TriPacket],
+        rays: &[Ray; PACKET],
+        out: &mut [Option<(u32, f32, f32, f32)>; PACKET],
+    ) -> bool {
+        packet::closest::<Avx8, Sse4>(nodes, packets, rays, out)
+    }
+
+    #[target_feature(enable = "avx2")]
     pub(super) fn occluded(nodes: &[Node<WIDTH>], packets: &[TriPacket], ray: &Ray) -> bool {
         traverse::occluded::<WIDTH, Avx8, Sse4>(nodes, packets, ray)
     }
@@ -235,6 +266,25 @@ impl Accel for NativeBvh {
             _ => traverse::closest::<WIDTH, Pair<Scalar4>, Scalar4>(n, p, ray),
         };
         self.hit(r)
+    }
+
+    /// Eight rays at a time as packets where they are coherent enough (see
+    /// [`intersect_packet`](NativeBvh::intersect_packet)), one by one elsewhere; the hits are
+    /// the same either way.
+    fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
+            let packet = <&[Ray; PACKET]>::try_from(rays)
+                .ok()
+                .and_then(|rays| self.intersect_packet(rays));
+            match packet {
+                Some(packet) => hits.copy_from_slice(&packet),
+                None => {
+                    for (r, h) in rays.iter().zip(hits.iter_mut()) {
+                        *h = self.intersect(r);
+                    }
+                }
+            }
+        }
     }
 
     #[inline]

@@ -1,17 +1,25 @@
-//! Four-lane `f32` vectors behind one trait, so the traversal and the triangle test are written
-//! once and compiled for SSE (x86_64) or plain scalar code (any target).
+//! `f32` lanes behind one trait, so the traversal and the triangle test are written once and
+//! compiled for AVX2, SSE (x86_64) or plain scalar code (any target): four lanes for a ray
+//! against four triangles, eight for a node's children or for eight rays against one triangle.
 //!
 //! `min` and `max` follow the SSE rule: when either operand is NaN the *second* operand is
 //! returned. The slab test relies on it (a NaN slab distance, from `0 * inf` when a ray with a
 //! zero direction component starts exactly on a slab plane, is then ignored).
+//!
+//! Every implementation rounds every operation as IEEE 754 single precision does, with no
+//! fused multiply-add, so a lane computes the same bits whatever its width or instruction set.
 
-/// Four `f32` lanes and their comparison masks.
-pub(crate) trait F32x4: Copy {
+/// `f32` lanes and their comparison masks.
+pub(crate) trait Lanes: Copy {
     type Mask: Copy;
+    /// `[f32; N]` for `N` lanes.
+    type Array: Copy;
+    /// Every lane's bit set.
+    const ALL: u32;
 
     fn splat(x: f32) -> Self;
-    fn load(a: &[f32; 4]) -> Self;
-    fn to_array(self) -> [f32; 4];
+    fn load(a: &Self::Array) -> Self;
+    fn to_array(self) -> Self::Array;
 
     fn add(self, o: Self) -> Self;
     fn sub(self, o: Self) -> Self;
@@ -39,7 +47,27 @@ pub(crate) trait F32x4: Copy {
     fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Bit `i` set when lane `i` is true.
     fn bits(m: Self::Mask) -> u32;
+    /// The mask whose lane `i` is bit `i` of `bits`.
+    fn mask(bits: u32) -> Self::Mask;
+    /// Per lane, `a` where `m` is true and `b` elsewhere (bit for bit, NaNs included).
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
 }
+
+/// Four lanes: one ray against the four triangles of a packet.
+pub(crate) trait F32x4: Lanes<Array = [f32; 4]> {}
+
+impl<S: Lanes<Array = [f32; 4]>> F32x4 for S {}
+
+/// `W` lanes for the box tests of a `W`-wide node (and for `W` rays at once).
+pub(crate) trait BoxLanes<const W: usize>: Lanes<Array = [f32; W]> {
+    /// Bit `i` set where lane `i` of `self <= o` (bits `0..W` only).
+    #[inline(always)]
+    fn le_bits(self, o: Self) -> u32 {
+        Self::bits(self.le(o))
+    }
+}
+
+impl<const W: usize, L: Lanes<Array = [f32; W]>> BoxLanes<W> for L {}
 
 /// The portable fallback: four scalars.
 #[derive(Clone, Copy, Debug)]
@@ -65,8 +93,10 @@ impl Scalar4 {
     }
 }
 
-impl F32x4 for Scalar4 {
+impl Lanes for Scalar4 {
     type Mask = u32;
+    type Array = [f32; 4];
+    const ALL: u32 = 0xf;
 
     #[inline(always)]
     fn splat(x: f32) -> Self {
@@ -154,28 +184,31 @@ impl F32x4 for Scalar4 {
     fn bits(m: u32) -> u32 {
         m
     }
+    #[inline(always)]
+    fn mask(bits: u32) -> u32 {
+        bits & 0xf
+    }
+    #[inline(always)]
+    fn select(m: u32, a: Self, b: Self) -> Self {
+        Scalar4(std::array::from_fn(|i| {
+            if m >> i & 1 != 0 {
+                a.0[i]
+            } else {
+                b.0[i]
+            }
+        }))
+    }
 }
 
-/// `W` lanes for the box tests of a `W`-wide node: the slab test needs only these.
-///
-/// `min` and `max` follow the SSE rule of [`F32x4`] (NaN in either lane gives `o`).
-pub(crate) trait BoxLanes<const W: usize>: Copy {
-    fn splat(x: f32) -> Self;
-    fn load(a: &[f32; W]) -> Self;
-    fn to_array(self) -> [f32; W];
-    fn sub(self, o: Self) -> Self;
-    fn mul(self, o: Self) -> Self;
-    fn min(self, o: Self) -> Self;
-    fn max(self, o: Self) -> Self;
-    /// Bit `i` set where lane `i` of `self <= o` (bits `0..W` only).
-    fn le_bits(self, o: Self) -> u32;
-}
-
-/// Eight box lanes in two [`F32x4`] halves.
+/// Eight lanes in two four-lane halves.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Pair<S>(pub S, pub S);
 
-impl<S: F32x4> BoxLanes<8> for Pair<S> {
+impl<S: F32x4> Lanes for Pair<S> {
+    type Mask = (S::Mask, S::Mask);
+    type Array = [f32; 8];
+    const ALL: u32 = 0xff;
+
     #[inline(always)]
     fn splat(x: f32) -> Self {
         Pair(S::splat(x), S::splat(x))
@@ -194,12 +227,20 @@ impl<S: F32x4> BoxLanes<8> for Pair<S> {
         [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]]
     }
     #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Pair(self.0.add(o.0), self.1.add(o.1))
+    }
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Pair(self.0.sub(o.0), self.1.sub(o.1))
     }
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Pair(self.0.mul(o.0), self.1.mul(o.1))
+    }
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        Pair(self.0.div(o.0), self.1.div(o.1))
     }
     #[inline(always)]
     fn min(self, o: Self) -> Self {
@@ -210,8 +251,60 @@ impl<S: F32x4> BoxLanes<8> for Pair<S> {
         Pair(self.0.max(o.0), self.1.max(o.1))
     }
     #[inline(always)]
-    fn le_bits(self, o: Self) -> u32 {
-        (S::bits(self.0.le(o.0)) & 0xf) | (S::bits(self.1.le(o.1)) & 0xf) << 4
+    fn abs(self) -> Self {
+        Pair(self.0.abs(), self.1.abs())
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> Self::Mask {
+        (self.0.lt(o.0), self.1.lt(o.1))
+    }
+    #[inline(always)]
+    fn le(self, o: Self) -> Self::Mask {
+        (self.0.le(o.0), self.1.le(o.1))
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        (self.0.gt(o.0), self.1.gt(o.1))
+    }
+    #[inline(always)]
+    fn ge(self, o: Self) -> Self::Mask {
+        (self.0.ge(o.0), self.1.ge(o.1))
+    }
+    #[inline(always)]
+    fn eq(self, o: Self) -> Self::Mask {
+        (self.0.eq(o.0), self.1.eq(o.1))
+    }
+    #[inline(always)]
+    fn not_ge(self, o: Self) -> Self::Mask {
+        (self.0.not_ge(o.0), self.1.not_ge(o.1))
+    }
+    #[inline(always)]
+    fn not_le(self, o: Self) -> Self::Mask {
+        (self.0.not_le(o.0), self.1.not_le(o.1))
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (S::and(a.0, b.0), S::and(a.1, b.1))
+    }
+    #[inline(always)]
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (S::or(a.0, b.0), S::or(a.1, b.1))
+    }
+    #[inline(always)]
+    fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (S::andnot(a.0, b.0), S::andnot(a.1, b.1))
+    }
+    #[inline(always)]
+    fn bits(m: Self::Mask) -> u32 {
+        (S::bits(m.0) & 0xf) | (S::bits(m.1) & 0xf) << 4
+    }
+    #[inline(always)]
+    fn mask(bits: u32) -> Self::Mask {
+        (S::mask(bits & 0xf), S::mask(bits >> 4 & 0xf))
+    }
+    #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        Pair(S::select(m.0, a.0, b.0), S::select(m.1, a.1, b.1))
     }
 }
 
@@ -222,61 +315,142 @@ pub(crate) use avx::Avx8;
 mod avx {
     use std::arch::x86_64::*;
 
-    use super::BoxLanes;
+    use super::Lanes;
 
     /// Eight lanes in an AVX register.
     ///
     /// Only for code compiled with `#[target_feature(enable = "avx2")]` and run after AVX2 was
     /// detected (the native backend's `Isa::Avx2` path): the methods are plain
-    /// `#[inline(always)]` functions so that they inline into such code, and they use AVX
-    /// instructions without checking.
+    /// `#[inline(always)]` functions so that they inline into such code, and they use AVX and
+    /// AVX2 instructions without checking.
     #[derive(Clone, Copy, Debug)]
     pub(crate) struct Avx8(__m256);
 
-    impl BoxLanes<8> for Avx8 {
+    impl Lanes for Avx8 {
+        type Mask = __m256;
+        type Array = [f32; 8];
+        const ALL: u32 = 0xff;
+
         #[inline(always)]
         fn splat(x: f32) -> Self {
-            // SAFETY: AVX is available wherever `Avx8` is used (see the type's docs).
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
             Avx8(unsafe { _mm256_set1_ps(x) })
         }
         #[inline(always)]
         fn load(a: &[f32; 8]) -> Self {
-            // SAFETY: `a` is 32 readable bytes, `loadu` needs no alignment; AVX is available
-            // wherever `Avx8` is used.
+            // SAFETY: `a` is 32 readable bytes and `loadu` needs no alignment; aVX and AVX2 are available wherever `Avx8` is used.
             Avx8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
         }
         #[inline(always)]
         fn to_array(self) -> [f32; 8] {
             let mut out = [0.0f32; 8];
-            // SAFETY: `out` is 32 writable bytes, `storeu` needs no alignment; AVX is
-            // available wherever `Avx8` is used.
+            // SAFETY: `out` is 32 writable bytes and `storeu` needs no alignment; aVX and AVX2 are available wherever `Avx8` is used.
             unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
             out
         }
         #[inline(always)]
+        fn add(self, o: Self) -> Self {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_add_ps(self.0, o.0) })
+        }
+        #[inline(always)]
         fn sub(self, o: Self) -> Self {
-            // SAFETY: AVX is available wherever `Avx8` is used.
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
             Avx8(unsafe { _mm256_sub_ps(self.0, o.0) })
         }
         #[inline(always)]
         fn mul(self, o: Self) -> Self {
-            // SAFETY: AVX is available wherever `Avx8` is used.
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
             Avx8(unsafe { _mm256_mul_ps(self.0, o.0) })
         }
         #[inline(always)]
+        fn div(self, o: Self) -> Self {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_div_ps(self.0, o.0) })
+        }
+        #[inline(always)]
         fn min(self, o: Self) -> Self {
-            // SAFETY: AVX is available wherever `Avx8` is used.
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
             Avx8(unsafe { _mm256_min_ps(self.0, o.0) })
         }
         #[inline(always)]
         fn max(self, o: Self) -> Self {
-            // SAFETY: AVX is available wherever `Avx8` is used.
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
             Avx8(unsafe { _mm256_max_ps(self.0, o.0) })
         }
         #[inline(always)]
-        fn le_bits(self, o: Self) -> u32 {
-            // SAFETY: AVX is available wherever `Avx8` is used.
-            unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)) as u32 }
+        fn abs(self) -> Self {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn le(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn gt(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn ge(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_GE_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn eq(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn not_ge(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_NGE_UQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn not_le(self, o: Self) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_cmp_ps::<_CMP_NLE_UQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn and(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_and_ps(a, b) }
+        }
+        #[inline(always)]
+        fn or(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_or_ps(a, b) }
+        }
+        #[inline(always)]
+        fn andnot(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_andnot_ps(a, b) }
+        }
+        #[inline(always)]
+        fn bits(m: __m256) -> u32 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe { _mm256_movemask_ps(m) as u32 }
+        }
+        #[inline(always)]
+        fn mask(bits: u32) -> __m256 {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            unsafe {
+                let lane = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+                let b = _mm256_and_si256(_mm256_set1_epi32(bits as i32), lane);
+                _mm256_castsi256_ps(_mm256_cmpeq_epi32(b, lane))
+            }
+        }
+        #[inline(always)]
+        fn select(m: __m256, a: Self, b: Self) -> Self {
+            // SAFETY: AVX and AVX2 are available wherever `Avx8` is used.
+            Avx8(unsafe { _mm256_blendv_ps(b.0, a.0, m) })
         }
     }
 }
@@ -288,14 +462,16 @@ pub(crate) use sse::Sse4;
 mod sse {
     use std::arch::x86_64::*;
 
-    use super::F32x4;
+    use super::Lanes;
 
     /// Four lanes in an SSE register (SSE2 is part of the x86_64 baseline).
     #[derive(Clone, Copy, Debug)]
     pub(crate) struct Sse4(__m128);
 
-    impl F32x4 for Sse4 {
+    impl Lanes for Sse4 {
         type Mask = __m128;
+        type Array = [f32; 4];
+        const ALL: u32 = 0xf;
 
         #[inline(always)]
         fn splat(x: f32) -> Self {
@@ -304,14 +480,13 @@ mod sse {
         }
         #[inline(always)]
         fn load(a: &[f32; 4]) -> Self {
-            // SAFETY: `a` is a valid reference to 16 readable bytes; `loadu` has no alignment
-            // requirement, and SSE is always available on x86_64.
+            // SAFETY: `a` is 16 readable bytes and `loadu` needs no alignment; sSE and SSE2 are part of the x86_64 baseline.
             Sse4(unsafe { _mm_loadu_ps(a.as_ptr()) })
         }
         #[inline(always)]
         fn to_array(self) -> [f32; 4] {
             let mut out = [0.0f32; 4];
-            // SAFETY: `out` is 16 writable bytes; `storeu` has no alignment requirement.
+            // SAFETY: `out` is 16 writable bytes and `storeu` needs no alignment; sSE and SSE2 are part of the x86_64 baseline.
             unsafe { _mm_storeu_ps(out.as_mut_ptr(), self.0) };
             out
         }
@@ -404,6 +579,20 @@ mod sse {
         fn bits(m: __m128) -> u32 {
             // SAFETY: SSE and SSE2 are part of the x86_64 baseline.
             unsafe { _mm_movemask_ps(m) as u32 }
+        }
+        #[inline(always)]
+        fn mask(bits: u32) -> __m128 {
+            // SAFETY: SSE and SSE2 are part of the x86_64 baseline.
+            unsafe {
+                let lane = _mm_setr_epi32(1, 2, 4, 8);
+                let b = _mm_and_si128(_mm_set1_epi32(bits as i32), lane);
+                _mm_castsi128_ps(_mm_cmpeq_epi32(b, lane))
+            }
+        }
+        #[inline(always)]
+        fn select(m: __m128, a: Self, b: Self) -> Self {
+            // SAFETY: SSE and SSE2 are part of the x86_64 baseline.
+            Sse4(unsafe { _mm_or_ps(_mm_and_ps(m, a.0), _mm_andnot_ps(m, b.0)) })
         }
     }
 }

@@ -12,7 +12,7 @@
 //! same sheared f32 corners, as the paper does for the zero case.
 
 use crate::ray::Ray;
-use crate::simd::F32x4;
+use crate::simd::{F32x4, Lanes, Scalar4};
 
 /// Four triangles in structure-of-arrays layout: `v[corner][axis][lane]`.
 ///
@@ -117,8 +117,9 @@ impl<S: F32x4> RayShearLanes<S> {
     }
 }
 
-/// The outcome of one packet test.
-pub(crate) struct PacketHits<S: F32x4> {
+/// The outcome of one test of lanes (four triangles against a ray, or a triangle against
+/// several rays).
+pub(crate) struct PacketHits<S: Lanes> {
     /// Lanes hit within `[t_min, t_max]` by the f32 test.
     pub hits: u32,
     /// Lanes whose f32 result is unreliable: call [`lane_f64`] for them.
@@ -129,10 +130,19 @@ pub(crate) struct PacketHits<S: F32x4> {
     pub det: S,
 }
 
+/// True when a hit at `t` on triangle `id` goes before the best one so far, at `best_t` on
+/// `best_id`: nearer, or as near and of a smaller id. The order of the tests can't change
+/// which triangle wins, so single rays and ray packets find the same one.
+#[inline(always)]
+pub(crate) fn before(t: f32, id: u32, best_t: f32, best_id: u32) -> bool {
+    t < best_t || (t == best_t && id < best_id)
+}
+
 impl<S: F32x4> PacketHits<S> {
-    /// (t, u, v) of the nearest lane in `hits` (which must be non-zero).
+    /// (lane, t, u, v) of the first lane in `hits` (which must be non-zero) by [`before`]:
+    /// `ids` are the lanes' triangle ids.
     #[inline(always)]
-    pub fn nearest(&self) -> (usize, f32, f32, f32) {
+    pub fn nearest(&self, ids: &[u32; 4]) -> (usize, f32, f32, f32) {
         let t = self.t.to_array();
         let mut m = self.hits;
         let mut best = m.trailing_zeros() as usize;
@@ -140,7 +150,7 @@ impl<S: F32x4> PacketHits<S> {
         while m != 0 {
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
-            if t[i] < t[best] {
+            if before(t[i], ids[i], t[best], ids[best]) {
                 best = i;
             }
         }
@@ -171,9 +181,27 @@ pub(crate) fn intersect_packet<S: F32x4>(
     t_min: S,
     t_max: S,
 ) -> PacketHits<S> {
-    let (ax, ay, az) = shear_lanes(p, 0, r);
-    let (bx, by, bz) = shear_lanes(p, 1, r);
-    let (cx, cy, cz) = shear_lanes(p, 2, r);
+    edge_test(
+        shear_lanes(p, 0, r),
+        shear_lanes(p, 1, r),
+        shear_lanes(p, 2, r),
+        r.s[2],
+        t_min,
+        t_max,
+    )
+}
+
+/// The watertight test from the sheared corners `a, b, c` (each `(x, y, z)`) and the shear
+/// constant `sz`: the arithmetic every lane layout shares.
+#[inline(always)]
+pub(crate) fn edge_test<S: Lanes>(
+    (ax, ay, az): (S, S, S),
+    (bx, by, bz): (S, S, S),
+    (cx, cy, cz): (S, S, S),
+    sz: S,
+    t_min: S,
+    t_max: S,
+) -> PacketHits<S> {
     let u = cx.mul(by).sub(cy.mul(bx));
     let v = ax.mul(cy).sub(ay.mul(cx));
     let w = bx.mul(ay).sub(by.mul(ax));
@@ -181,8 +209,8 @@ pub(crate) fn intersect_packet<S: F32x4>(
     let neg = S::or(S::or(u.lt(zero), v.lt(zero)), w.lt(zero));
     let pos = S::or(S::or(u.gt(zero), v.gt(zero)), w.gt(zero));
     let miss = S::and(neg, pos);
-    // Most packets miss with all four lanes: skip the distance computation for them.
-    if S::bits(miss) == 0xf {
+    // Most tests miss in every lane: skip the distance computation for them.
+    if S::bits(miss) == S::ALL {
         return PacketHits {
             hits: 0,
             redo: 0,
@@ -193,7 +221,6 @@ pub(crate) fn intersect_packet<S: F32x4>(
         };
     }
     let det = u.add(v).add(w);
-    let sz = r.s[2];
     let tt = u
         .mul(sz.mul(az))
         .add(v.mul(sz.mul(bz)))
@@ -253,29 +280,31 @@ pub(crate) fn lane_f64(
     if det == 0.0 {
         return None;
     }
-    let t = (u * az + v * bz + w * cz) / det;
-    if !(t >= t_min as f64 && t <= t_max as f64) {
+    // The range test is on the f32 distance the caller compares, so that whether a hit counts
+    // doesn't depend on the order triangles are tested in (see [`before`]).
+    let t = ((u * az + v * bz + w * cz) / det) as f32;
+    if !(t >= t_min && t <= t_max) {
         return None;
     }
-    Some((t as f32, (v / det) as f32, (w / det) as f32))
+    Some((t, (v / det) as f32, (w / det) as f32))
 }
 
 /// One triangle against one ray, through the packet code (for tests and small callers).
 pub fn intersect_triangle(ray: &Ray, tri: &[glam::Vec3; 3]) -> Option<(f32, f32, f32)> {
     let r = RayShear::new(ray)?;
     let p = TriPacket::new(&[(*tri, 0)]);
-    let lanes = RayShearLanes::<crate::simd::Scalar4>::new(&r);
+    let lanes = RayShearLanes::<Scalar4>::new(&r);
     let h = intersect_packet(
         &p,
         &lanes,
-        crate::simd::Scalar4::splat(ray.t_min),
-        crate::simd::Scalar4::splat(ray.t_max),
+        Scalar4::splat(ray.t_min),
+        Scalar4::splat(ray.t_max),
     );
     if h.redo & 1 != 0 {
         return lane_f64(&p, 0, &r, ray.t_min, ray.t_max);
     }
     (h.hits & 1 != 0).then(|| {
-        let (_, t, u, v) = h.nearest();
+        let (_, t, u, v) = h.nearest(&p.id);
         (t, u, v)
     })
 }

@@ -104,19 +104,7 @@ fn watertight_through_shared_edges_and_vertices() {
 fn axis_aligned_rays_on_a_grid_hit_vertices_and_edges() {
     // A flat integer grid: rays along -z through vertices, edges and cells, and rays along
     // the other axes and diagonals at exact grid coordinates, with zero direction components.
-    let mut grid = Vec::new();
-    for j in 0..8 {
-        for i in 0..8 {
-            let (x, y) = (i as f32, j as f32);
-            let a = Vec3::new(x, y, 0.0);
-            let b = Vec3::new(x + 1.0, y, 0.0);
-            let c = Vec3::new(x, y + 1.0, 0.0);
-            let d = Vec3::new(x + 1.0, y + 1.0, 0.0);
-            grid.push([a, b, d]);
-            grid.push([a, d, c]);
-        }
-    }
-    let scene = soup(grid);
+    let scene = soup(flat_grid(8));
     let brute = BruteForce::new(scene.clone());
     for isa in Isa::supported() {
         let native = NativeBvh::with_isa(&scene, isa);

@@ -110,6 +110,13 @@ pub struct RaysArgs {
     #[arg(long)]
     pub embree_no_robust: bool,
 
+    /// Also trace each set through the backends' batch queries (`intersect_batch`,
+    /// `occluded_batch`; chunks of 256 rays), reported as `BACKEND/batch`, side by side with the
+    /// one-ray-per-call runs: the native BVH traces coherent closest-hit rays eight at a time
+    /// as packets.
+    #[arg(long)]
+    pub batch: bool,
+
     /// Print one JSON object per (backend, kind) on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -183,23 +190,32 @@ enum Results {
 /// Rays per work item handed to the pool.
 const CHUNK: usize = 256;
 
-/// Traces `rays` once on the current pool, one ray at a time per backend call.
-fn trace(accel: &dyn Accel, kind: RayKind, rays: &[Ray], out: &mut Results) {
+/// Traces `rays` once on the current pool: one ray per backend call, or with `batch` a chunk
+/// per call of the batch queries.
+fn trace(accel: &dyn Accel, kind: RayKind, rays: &[Ray], out: &mut Results, batch: bool) {
     match out {
         Results::Hits(h) => h
             .par_chunks_mut(CHUNK)
             .zip(rays.par_chunks(CHUNK))
             .for_each(|(h, r)| {
-                for (h, r) in h.iter_mut().zip(r) {
-                    *h = accel.intersect(r);
+                if batch {
+                    accel.intersect_batch(r, h);
+                } else {
+                    for (h, r) in h.iter_mut().zip(r) {
+                        *h = accel.intersect(r);
+                    }
                 }
             }),
         Results::Occluded(o) => o
             .par_chunks_mut(CHUNK)
             .zip(rays.par_chunks(CHUNK))
             .for_each(|(o, r)| {
-                for (o, r) in o.iter_mut().zip(r) {
-                    *o = accel.occluded(r);
+                if batch {
+                    accel.occluded_batch(r, o);
+                } else {
+                    for (o, r) in o.iter_mut().zip(r) {
+                        *o = accel.occluded(r);
+                    }
                 }
             }),
     }
@@ -276,7 +292,7 @@ fn mismatches(
 
 /// One (backend, kind) measurement.
 struct Row {
-    backend: &'static str,
+    backend: String,
     kind: RayKind,
     rays: usize,
     mrays_per_s: f64,
@@ -340,7 +356,7 @@ fn run_rays(args: &RaysArgs) -> Result<()> {
         .map(|&kind| {
             let rays = sets.get(kind);
             let mut out = empty_results(kind, rays.len());
-            pool.install(|| trace(&native, kind, rays, &mut out));
+            pool.install(|| trace(&native, kind, rays, &mut out, false));
             out
         })
         .collect();
@@ -361,9 +377,16 @@ fn run_rays(args: &RaysArgs) -> Result<()> {
             built.push((name, Some(b), ms));
         }
     }
-    let accels: Vec<&dyn Accel> = built
+    // (label, backend, build ms, through the batch queries)
+    let accels: Vec<(String, &dyn Accel, f64, bool)> = built
         .iter()
-        .map(|(_, b, _)| b.as_deref().unwrap_or(&native as &dyn Accel))
+        .flat_map(|(name, b, ms)| {
+            let accel = b.as_deref().unwrap_or(&native as &dyn Accel);
+            let batch = args
+                .batch
+                .then(|| (format!("{name}/batch"), accel, *ms, true));
+            std::iter::once((name.to_string(), accel, *ms, false)).chain(batch)
+        })
         .collect();
 
     let mut rows = Vec::new();
@@ -375,15 +398,15 @@ fn run_rays(args: &RaysArgs) -> Result<()> {
             .collect();
         let mut rates = vec![Vec::with_capacity(args.repeat); accels.len()];
         for _ in 0..args.repeat {
-            for (i, &accel) in accels.iter().enumerate() {
+            for (i, &(_, accel, _, batch)) in accels.iter().enumerate() {
                 let out = &mut outs[i];
                 let start = Instant::now();
-                pool.install(|| trace(accel, kind, rays, out));
+                pool.install(|| trace(accel, kind, rays, out, batch));
                 let s = start.elapsed().as_secs_f64();
                 rates[i].push(rays.len() as f64 / s.max(1e-12) / 1e6);
             }
         }
-        for (i, (name, _, build_ms)) in built.iter().enumerate() {
+        for (i, (name, accel, build_ms, _)) in accels.iter().enumerate() {
             let r = &mut rates[i];
             let range = (
                 r.iter().copied().fold(f64::INFINITY, f64::min),
@@ -391,20 +414,20 @@ fn run_rays(args: &RaysArgs) -> Result<()> {
             );
             let bad = mismatches(name, "native", kind, rays, &outs[i], &reference[k]);
             rows.push(Row {
-                backend: name,
+                backend: name.clone(),
                 kind,
                 rays: rays.len(),
                 mrays_per_s: median(r),
                 range,
                 build_ms: *build_ms,
-                memory_bytes: accels[i].memory_bytes(),
+                memory_bytes: accel.memory_bytes(),
                 mismatches: bad,
             });
         }
     }
     // Rows by backend, then kind.
     rows.sort_by_key(|r| {
-        let b = backends.iter().position(|&n| n == r.backend);
+        let b = accels.iter().position(|a| a.0 == r.backend);
         let k = RayKind::ALL.iter().position(|&x| x == r.kind);
         (b, k)
     });
@@ -454,14 +477,14 @@ fn table(
     );
     let _ = writeln!(
         s,
-        "{:<8} {:<8} {:>9} {:>10} {:>17} {:>10} {:>11} {:>10} {:>10}",
+        "{:<12} {:<8} {:>9} {:>10} {:>17} {:>10} {:>11} {:>10} {:>10}",
         "backend", "kind", "rays", "Mrays/s", "(min-max)", "build ms", "ms/Mtri", "MiB", "mismatch"
     );
     for r in rows {
         let per_mtri = if mtri > 0.0 { r.build_ms / mtri } else { 0.0 };
         let _ = writeln!(
             s,
-            "{:<8} {:<8} {:>9} {:>10.2} {:>17} {:>10.1} {:>11.1} {:>10.1} {:>10}",
+            "{:<12} {:<8} {:>9} {:>10.2} {:>17} {:>10.1} {:>11.1} {:>10.1} {:>10}",
             r.backend,
             r.kind.name(),
             r.rays,

@@ -181,12 +181,24 @@ impl PathTracer<'_> {
     /// The closest surface along `ray` that is not cut away, with its shading; counts the
     /// rays traced into `rays`.
     #[inline(always)]
-    pub fn intersect(&self, mut ray: Ray, rng: &mut Rng, rays: &mut u32) -> Option<Vertex> {
+    pub fn intersect(&self, ray: Ray, rng: &mut Rng, rays: &mut u32) -> Option<Vertex> {
+        self.intersect_from(ray, self.world.accel.intersect(&ray), rng, rays)
+    }
+
+    /// As [`intersect`](Self::intersect), given `hit`, the closest hit of `ray` (which the
+    /// caller traced, e.g. as part of a batch).
+    #[inline(always)]
+    pub fn intersect_from(
+        &self,
+        mut ray: Ray,
+        mut hit: Option<Hit>,
+        rng: &mut Rng,
+        rays: &mut u32,
+    ) -> Option<Vertex> {
         let world = self.world;
         for _ in 0..MAX_ALPHA_LAYERS {
             *rays += 1;
-            let hit = world.accel.intersect(&ray)?;
-            let v = Vertex::new(world, &ray, hit, self.config.microfacet);
+            let v = Vertex::new(world, &ray, hit?, self.config.microfacet);
             let alpha = v.shading.alpha;
             if alpha >= 1.0 || (alpha > 0.0 && rng.next_f32() < alpha) {
                 return Some(v);
@@ -196,6 +208,7 @@ impl PathTracer<'_> {
             let origin = offset_origin(surface.p, surface.ng, ray.direction);
             let skipped = (origin - ray.origin).dot(ray.direction);
             ray = Ray::segment(origin, ray.direction, 0.0, ray.t_max - skipped);
+            hit = world.accel.intersect(&ray);
         }
         None
     }

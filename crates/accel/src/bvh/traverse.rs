@@ -13,7 +13,7 @@ use std::mem::MaybeUninit;
 use super::wide::{leaf_range, Node, LEAF_BIT};
 use crate::ray::Ray;
 use crate::simd::{BoxLanes, F32x4};
-use crate::triangle::{intersect_packet, lane_f64, RayShear, RayShearLanes, TriPacket};
+use crate::triangle::{before, intersect_packet, lane_f64, RayShear, RayShearLanes, TriPacket};
 
 /// Traversal stack entries. The builder bounds the tree depth by `SAH_MAX_DEPTH + 32 = 80`,
 /// and each level pushes at most `WIDTH - 1` entries.
@@ -22,7 +22,7 @@ const _: () =
     assert!(STACK > (super::wide::WIDTH - 1) * (super::build::SAH_MAX_DEPTH as usize + 32));
 
 /// `1 + 2 * gamma(3)` of Ize's paper, plus one ulp for rounding the scaled reciprocal.
-const FAR_SCALE: f32 = 1.0 + 4.0 * f32::EPSILON;
+pub(super) const FAR_SCALE: f32 = 1.0 + 4.0 * f32::EPSILON;
 
 /// The per-ray constants of the slab test, in lanes.
 struct RayBox<const W: usize, B: BoxLanes<W>> {
@@ -73,14 +73,14 @@ struct Entry {
 }
 
 /// The fixed-size traversal stack.
-struct Stack<T: Copy> {
+pub(super) struct Stack<T: Copy> {
     items: [MaybeUninit<T>; STACK],
     len: usize,
 }
 
 impl<T: Copy> Stack<T> {
     #[inline(always)]
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         Self {
             items: [const { MaybeUninit::uninit() }; STACK],
             len: 0,
@@ -88,7 +88,7 @@ impl<T: Copy> Stack<T> {
     }
 
     #[inline(always)]
-    fn push(&mut self, x: T) {
+    pub(super) fn push(&mut self, x: T) {
         debug_assert!(self.len < STACK);
         // SAFETY: a traversal pushes at most three entries per level of a tree at most
         // `SAH_MAX_DEPTH + 32` levels deep (the builder's bound), fewer than `STACK` in all.
@@ -97,7 +97,7 @@ impl<T: Copy> Stack<T> {
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> Option<T> {
+    pub(super) fn pop(&mut self) -> Option<T> {
         if self.len == 0 {
             return None;
         }
@@ -108,10 +108,23 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-impl Stack<Entry> {
+/// A stack entry with a distance to sort by.
+pub(super) trait Near: Copy {
+    /// The distance at which the ray (or the packet) enters the entry's box.
+    fn near(&self) -> f32;
+}
+
+impl Near for Entry {
+    #[inline(always)]
+    fn near(&self) -> f32 {
+        self.dist
+    }
+}
+
+impl<T: Near> Stack<T> {
     /// Sorts the top `k` entries so the nearest is on top (insertion sort; `k <= WIDTH`).
     #[inline(always)]
-    fn sort_top(&mut self, k: usize) {
+    pub(super) fn sort_top(&mut self, k: usize) {
         debug_assert!(k <= self.len);
         let base = self.len - k;
         let s = self.items.as_mut_ptr();
@@ -120,7 +133,7 @@ impl Stack<Entry> {
             unsafe {
                 let x = (*s.add(a)).assume_init();
                 let mut j = a;
-                while j > base && (*s.add(j - 1)).assume_init().dist < x.dist {
+                while j > base && (*s.add(j - 1)).assume_init().near() < x.near() {
                     *s.add(j) = *s.add(j - 1);
                     j -= 1;
                 }
@@ -132,7 +145,7 @@ impl Stack<Entry> {
 
 /// Child `i` (below `W`) of `node`.
 #[inline(always)]
-fn child<const W: usize>(node: &Node<W>, i: u32) -> u32 {
+pub(super) fn child<const W: usize>(node: &Node<W>, i: u32) -> u32 {
     debug_assert!((i as usize) < W);
     // SAFETY: `i` is a lane index of a `W`-bit hit mask (`BoxLanes::le_bits`).
     unsafe { *node.child.get_unchecked(i as usize) }
@@ -140,7 +153,7 @@ fn child<const W: usize>(node: &Node<W>, i: u32) -> u32 {
 
 /// The inner node of code `code`.
 #[inline(always)]
-fn node_at<const W: usize>(nodes: &[Node<W>], code: u32) -> &Node<W> {
+pub(super) fn node_at<const W: usize>(nodes: &[Node<W>], code: u32) -> &Node<W> {
     debug_assert!((code as usize) < nodes.len());
     // SAFETY: inner-node codes are indices into `nodes` by construction (`wide::collapse`
     // numbers each node it pushes), and the root `0` always exists.
@@ -149,7 +162,7 @@ fn node_at<const W: usize>(nodes: &[Node<W>], code: u32) -> &Node<W> {
 
 /// The packets of the leaf of code `code`.
 #[inline(always)]
-fn leaf_at(packets: &[TriPacket], code: u32) -> &[TriPacket] {
+pub(super) fn leaf_at(packets: &[TriPacket], code: u32) -> &[TriPacket] {
     let (first, count) = leaf_range(code);
     debug_assert!(first + count <= packets.len());
     // SAFETY: leaf codes name a range of packets `wide::collapse` emitted (empty slots have
@@ -157,7 +170,10 @@ fn leaf_at(packets: &[TriPacket], code: u32) -> &[TriPacket] {
     unsafe { packets.get_unchecked(first..first + count) }
 }
 
-/// The closest hit: (triangle id, t, u, v).
+/// A closest-hit query's answer so far: (triangle id, t, u, v), `u32::MAX` for no hit.
+pub(super) type Best = (u32, f32, f32, f32);
+
+/// The closest hit: (triangle id, t, u, v); of hits at the same `t`, the smallest id.
 #[inline(always)]
 pub(crate) fn closest<const W: usize, B: BoxLanes<W>, S: F32x4>(
     nodes: &[Node<W>],
@@ -165,16 +181,32 @@ pub(crate) fn closest<const W: usize, B: BoxLanes<W>, S: F32x4>(
     ray: &Ray,
 ) -> Option<(u32, f32, f32, f32)> {
     let shear = RayShear::new(ray)?;
-    let lanes = RayShearLanes::<S>::new(&shear);
+    let none = (u32::MAX, ray.t_max, 0.0, 0.0);
+    let best = closest_in::<W, B, S>(nodes, packets, ray, &shear, 0, none);
+    (best.0 != u32::MAX).then_some(best)
+}
+
+/// The closest hit of `ray` (whose watertight-test constants are `shear`) in the subtree of
+/// code `root` that goes [`before`] `best`, or `best`.
+#[inline(always)]
+pub(super) fn closest_in<const W: usize, B: BoxLanes<W>, S: F32x4>(
+    nodes: &[Node<W>],
+    packets: &[TriPacket],
+    ray: &Ray,
+    shear: &RayShear,
+    root: u32,
+    best: Best,
+) -> Best {
+    let lanes = RayShearLanes::<S>::new(shear);
     let rb = RayBox::<W, B>::new(ray);
     let t_min = S::splat(ray.t_min);
     let box_t_min = B::splat(ray.t_min);
-    let mut best_t = ray.t_max;
+    let mut best_t = best.1;
     let mut t_max = S::splat(best_t);
     let mut box_t_max = B::splat(best_t);
-    let mut best = (u32::MAX, 0.0f32, 0.0f32);
+    let mut best = (best.0, best.2, best.3);
     let mut stack = Stack::<Entry>::new();
-    let mut code = 0u32;
+    let mut code = root;
     loop {
         if code & LEAF_BIT == 0 {
             let node = node_at(nodes, code);
@@ -230,17 +262,21 @@ pub(crate) fn closest<const W: usize, B: BoxLanes<W>, S: F32x4>(
             for p in leaf_at(packets, code) {
                 let h = intersect_packet(p, &lanes, t_min, t_max);
                 if h.hits != 0 {
-                    let (lane, t, u, v) = h.nearest();
-                    best_t = t;
-                    best = (p.id[lane], u, v);
+                    let (lane, t, u, v) = h.nearest(&p.id);
+                    if before(t, p.id[lane], best_t, best.0) {
+                        best_t = t;
+                        best = (p.id[lane], u, v);
+                    }
                 }
                 let mut redo = h.redo;
                 while redo != 0 {
                     let lane = redo.trailing_zeros() as usize;
                     redo &= redo - 1;
-                    if let Some((t, u, v)) = lane_f64(p, lane, &shear, ray.t_min, best_t) {
-                        best_t = t;
-                        best = (p.id[lane], u, v);
+                    if let Some((t, u, v)) = lane_f64(p, lane, shear, ray.t_min, best_t) {
+                        if before(t, p.id[lane], best_t, best.0) {
+                            best_t = t;
+                            best = (p.id[lane], u, v);
+                        }
                     }
                 }
                 t_max = S::splat(best_t);
@@ -250,7 +286,7 @@ pub(crate) fn closest<const W: usize, B: BoxLanes<W>, S: F32x4>(
         // Pop the next entry still in front of the closest hit.
         loop {
             let Some(e) = stack.pop() else {
-                return (best.0 != u32::MAX).then_some((best.0, best_t, best.1, best.2));
+                return (best.0, best_t, best.1, best.2);
             };
             if e.dist <= best_t {
                 code = e.code;

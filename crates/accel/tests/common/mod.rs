@@ -195,6 +195,24 @@ pub fn compare(
     }
 }
 
+/// A flat `n x n` grid of unit squares in the plane z = 0, two triangles each, with every
+/// corner at integer coordinates: rays can pass exactly through its edges and vertices.
+pub fn flat_grid(n: usize) -> Vec<[Vec3; 3]> {
+    let mut grid = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let (x, y) = (i as f32, j as f32);
+            let a = Vec3::new(x, y, 0.0);
+            let b = Vec3::new(x + 1.0, y, 0.0);
+            let c = Vec3::new(x, y + 1.0, 0.0);
+            let d = Vec3::new(x + 1.0, y + 1.0, 0.0);
+            grid.push([a, b, d]);
+            grid.push([a, d, c]);
+        }
+    }
+    grid
+}
+
 /// A height field of `n x n` quads (two triangles each) sharing every edge, rotated to a
 /// generic orientation, with its rotation.
 pub fn height_field(rng: &mut Rng, n: usize, jitter: f32, bump: f32) -> (Vec<[Vec3; 3]>, Mat3) {

@@ -4,7 +4,7 @@
 //! lighting pass, where the path goes on from there.
 
 use glam::{Vec2, Vec3};
-use pathlight_accel::Ray;
+use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::Rng;
 
 use crate::camera::Camera;
@@ -86,14 +86,16 @@ impl GBuffer {
     }
 }
 
-/// The primary visibility pass for one pixel: traces `sample`, the pixel's camera sample
-/// ([`PathTracer::camera_sample`]), to its first surface. `previous` is the
-/// camera of the previous frame (motion vectors). Returns the G-buffer pixel, the hit for the
-/// lighting pass and the rays traced.
+/// The primary visibility pass for one pixel: follows `sample`, the pixel's camera sample
+/// ([`PathTracer::camera_sample`]), to its first surface; `hit` is the closest hit of its ray
+/// (the caller traces a run's camera rays together). `previous` is the camera of the previous
+/// frame (motion vectors). Returns the G-buffer pixel, the hit for the lighting pass and the
+/// rays traced.
 #[inline]
 pub fn primary(
     tracer: &PathTracer,
     sample: CameraSample,
+    hit: Option<Hit>,
     previous: Option<&Camera>,
 ) -> (GPixel, PrimaryHit, u32) {
     let camera = tracer.camera;
@@ -103,7 +105,7 @@ pub fn primary(
         sampler,
     } = sample;
     let mut rays = 0;
-    let first = tracer.intersect(ray, &mut rng, &mut rays);
+    let first = tracer.intersect_from(ray, hit, &mut rng, &mut rays);
     let now_and_then = |at: &dyn Fn(&Camera) -> Option<Vec2>| {
         previous
             .and_then(|prev| Some(at(prev)? - at(camera)?))

@@ -32,7 +32,7 @@ use serde::Serialize;
 
 use crate::camera::Camera;
 use crate::config::Config;
-use crate::path::PathTracer;
+use crate::path::{CameraSample, PathTracer};
 use crate::world::World;
 
 use accumulation::PixelStats;
@@ -319,8 +319,15 @@ fn trace(
         .zip(lighting.par_chunks_mut(RUN))
         .enumerate()
         .map_init(
-            || (Vec::with_capacity(RUN), Vec::with_capacity(RUN)),
-            |(cameras, hits), (b, (gpixels, lpixels))| {
+            || {
+                (
+                    Vec::with_capacity(RUN),
+                    Vec::with_capacity(RUN),
+                    Vec::with_capacity(RUN),
+                    Vec::with_capacity(RUN),
+                )
+            },
+            |(cameras, camera_rays, first_hits, hits), (b, (gpixels, lpixels))| {
                 // The pixels of the run, in order (no division per pixel).
                 let start = b * RUN;
                 let pixels = || {
@@ -344,9 +351,16 @@ fn trace(
                         .take(gpixels.len())
                         .map(|(x, y)| tracer.camera_sample(x, y, index)),
                 );
+                // Their rays together: neighbouring pixels' rays go as packets.
+                camera_rays.clear();
+                camera_rays.extend(cameras.iter().map(|c: &CameraSample| c.ray));
+                first_hits.resize(camera_rays.len(), None);
+                tracer.world.accel.intersect_batch(camera_rays, first_hits);
                 hits.clear();
-                for (g, sample) in gpixels.iter_mut().zip(cameras.drain(..)) {
-                    let (pixel, hit, r) = gbuffer::primary(tracer, sample, previous);
+                for ((g, sample), &first) in
+                    gpixels.iter_mut().zip(cameras.drain(..)).zip(&*first_hits)
+                {
+                    let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
                     *g = pixel;
                     hits.push(hit);
                     rays += r as u64;
