@@ -196,7 +196,10 @@ impl PathTracer<'_> {
         rays: &mut u32,
     ) -> Option<Vertex> {
         let world = self.world;
-        for _ in 0..MAX_ALPHA_LAYERS {
+        for layer in 0..MAX_ALPHA_LAYERS {
+            if layer > 0 {
+                hit = world.accel.intersect(&ray);
+            }
             *rays += 1;
             let v = Vertex::new(world, &ray, hit?, self.config.microfacet);
             let alpha = v.shading.alpha;
@@ -208,7 +211,6 @@ impl PathTracer<'_> {
             let origin = offset_origin(surface.p, surface.ng, ray.direction);
             let skipped = (origin - ray.origin).dot(ray.direction);
             ray = Ray::segment(origin, ray.direction, 0.0, ray.t_max - skipped);
-            hit = world.accel.intersect(&ray);
         }
         None
     }

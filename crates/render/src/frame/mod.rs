@@ -32,7 +32,7 @@ use serde::Serialize;
 
 use crate::camera::Camera;
 use crate::config::Config;
-use crate::path::{CameraSample, PathTracer};
+use crate::path::PathTracer;
 use crate::world::World;
 
 use accumulation::PixelStats;
@@ -353,7 +353,7 @@ fn trace(
                 );
                 // Their rays together: neighbouring pixels' rays go as packets.
                 camera_rays.clear();
-                camera_rays.extend(cameras.iter().map(|c: &CameraSample| c.ray));
+                camera_rays.extend(cameras.iter().map(|c| c.ray));
                 first_hits.resize(camera_rays.len(), None);
                 tracer.world.accel.intersect_batch(camera_rays, first_hits);
                 hits.clear();
