@@ -648,6 +648,86 @@ mod tests {
         assert_eq!(a.sub(b).mul(b).to_array()[W - 1], (W as f32 - 3.5) * 0.5);
     }
 
+    /// Every operation of `L`, lane by lane, against plain `f32` arithmetic (bit for bit, on
+    /// values with NaN, infinities, signed zeros and integer bit patterns), and `select` with
+    /// `mask` for every mask.
+    fn check_lanes<const W: usize, L: BoxLanes<W>>() {
+        let values = [
+            1.5,
+            -2.25,
+            f32::NAN,
+            0.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::from_bits(7),
+            3.0e-39,
+            1.0e30,
+            -7.0,
+        ];
+        let pick = |k: usize| -> [f32; W] { std::array::from_fn(|i| values[(i * 3 + k) % 11]) };
+        for k in 0..11 {
+            let (x, y) = (pick(k), pick(k + 5));
+            let (a, b) = (L::load(&x), L::load(&y));
+            let same = |got: [f32; W], f: &dyn Fn(f32, f32) -> f32| {
+                for i in 0..W {
+                    let want = f(x[i], y[i]);
+                    let ok =
+                        got[i].to_bits() == want.to_bits() || (got[i].is_nan() && want.is_nan());
+                    assert!(
+                        ok,
+                        "lane {i}: {} {} gave {}, want {want}",
+                        x[i], y[i], got[i]
+                    );
+                }
+            };
+            same(a.add(b).to_array(), &|p, q| p + q);
+            same(a.sub(b).to_array(), &|p, q| p - q);
+            same(a.mul(b).to_array(), &|p, q| p * q);
+            same(a.div(b).to_array(), &|p, q| p / q);
+            same(a.min(b).to_array(), &|p, q| if p < q { p } else { q });
+            same(a.max(b).to_array(), &|p, q| if p > q { p } else { q });
+            same(a.abs().to_array(), &|p, _| p.abs());
+            let bits = |f: &dyn Fn(f32, f32) -> bool| -> u32 {
+                (0..W).map(|i| u32::from(f(x[i], y[i])) << i).sum()
+            };
+            assert_eq!(L::bits(a.lt(b)), bits(&|p, q| p < q));
+            assert_eq!(L::bits(a.le(b)), bits(&|p, q| p <= q));
+            assert_eq!(L::bits(a.gt(b)), bits(&|p, q| p > q));
+            assert_eq!(L::bits(a.ge(b)), bits(&|p, q| p >= q));
+            assert_eq!(L::bits(a.eq(b)), bits(&|p, q| p == q));
+            #[allow(clippy::neg_cmp_op_on_partial_ord)] // deliberately true for NaN
+            {
+                assert_eq!(L::bits(a.not_ge(b)), bits(&|p, q| !(p >= q)));
+                assert_eq!(L::bits(a.not_le(b)), bits(&|p, q| !(p <= q)));
+            }
+        }
+        let (x, y) = (pick(0), pick(1));
+        for m in 0..1u32 << W {
+            assert_eq!(L::bits(L::mask(m)), m);
+            let got = L::select(L::mask(m), L::load(&x), L::load(&y)).to_array();
+            for i in 0..W {
+                let want = if m >> i & 1 != 0 { x[i] } else { y[i] };
+                assert_eq!(got[i].to_bits(), want.to_bits(), "mask {m:b} lane {i}");
+            }
+        }
+        assert_eq!(L::ALL, (1 << W) - 1);
+    }
+
+    #[test]
+    fn lanes_are_ieee_single_precision_lane_by_lane() {
+        check_lanes::<4, Scalar4>();
+        check_lanes::<8, Pair<Scalar4>>();
+        #[cfg(target_arch = "x86_64")]
+        {
+            check_lanes::<4, Sse4>();
+            check_lanes::<8, Pair<Sse4>>();
+            if is_x86_feature_detected!("avx2") {
+                check_lanes::<8, Avx8>();
+            }
+        }
+    }
+
     #[test]
     fn box_lanes_semantics() {
         check_box::<8, Pair<Scalar4>>();
