@@ -167,10 +167,16 @@ fn shear_lanes<S: F32x4>(p: &TriPacket, c: usize, r: &RayShearLanes<S>) -> (S, S
     let corner = &p.v[c];
     // SAFETY: `RayShearLanes::new` clamps every `k` to 0..=2.
     let load = |a: usize| S::load(unsafe { corner.get_unchecked(r.k[a]) });
-    let ax = load(0).sub(r.o[0]);
-    let ay = load(1).sub(r.o[1]);
-    let az = load(2).sub(r.o[2]);
-    (ax.sub(r.s[0].mul(az)), ay.sub(r.s[1].mul(az)), az)
+    shear([load(0), load(1), load(2)], &r.o, &r.s)
+}
+
+/// A triangle corner `[x, y, z]`, already in the ray's permuted axis order, in the sheared
+/// frame of origin `o` and shear constants `s` (`x, y` in the plane, `z` along the ray,
+/// unscaled): the arithmetic every lane layout shares.
+#[inline(always)]
+pub(crate) fn shear<S: Lanes>([x, y, z]: [S; 3], o: &[S; 3], s: &[S; 3]) -> (S, S, S) {
+    let (ax, ay, az) = (x.sub(o[0]), y.sub(o[1]), z.sub(o[2]));
+    (ax.sub(s[0].mul(az)), ay.sub(s[1].mul(az)), az)
 }
 
 /// Tests a ray against the four triangles of a packet.

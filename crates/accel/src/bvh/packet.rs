@@ -14,11 +14,11 @@
 //! rays of eight neighbouring pixels nearly always do. Otherwise the caller traces them one by
 //! one.
 
-use super::traverse::{child, closest_in, leaf_at, node_at, Best, Near, Stack, FAR_SCALE};
+use super::traverse::{child, closest_in, leaf_at, node_at, slab, Best, Near, Stack, FAR_SCALE};
 use super::wide::{Node, EMPTY_CHILD, LEAF_BIT, WIDTH};
 use crate::ray::Ray;
 use crate::simd::{BoxLanes, F32x4};
-use crate::triangle::{before, edge_test, lane_f64, RayShear, TriPacket};
+use crate::triangle::{before, edge_test, lane_f64, shear, RayShear, TriPacket};
 
 /// Rays per packet ([`NativeBvh::intersect_packet`](crate::NativeBvh::intersect_packet)): as
 /// many as a node has children, so one lane type serves both.
@@ -94,31 +94,20 @@ impl BestArrays {
 /// The entry and exit distances of each ray into child `i` of `node` (the single-ray slab
 /// test, lane by lane; `near` picks each axis's near bound, shared by the rays).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn slabs<L: BoxLanes<PACKET>>(
     node: &Node<WIDTH>,
     i: usize,
     near: &[usize; 3],
-    o: &[L; 3],
-    inv: &[L; 3],
-    inv_far: &[L; 3],
+    ray: [&[L; 3]; 3],
     t_min: L,
     t_max: L,
 ) -> (L, L) {
-    let tn0 = L::splat(node.b[near[0]][i]).sub(o[0]).mul(inv[0]);
-    let tn1 = L::splat(node.b[near[1]][i]).sub(o[1]).mul(inv[1]);
-    let tn2 = L::splat(node.b[near[2]][i]).sub(o[2]).mul(inv[2]);
-    let tf0 = L::splat(node.b[near[0] ^ 1][i]).sub(o[0]).mul(inv_far[0]);
-    let tf1 = L::splat(node.b[near[1] ^ 1][i]).sub(o[1]).mul(inv_far[1]);
-    let tf2 = L::splat(node.b[near[2] ^ 1][i]).sub(o[2]).mul(inv_far[2]);
-    (
-        tn0.max(tn1.max(tn2.max(t_min))),
-        tf0.min(tf1.min(tf2.min(t_max))),
-    )
+    let b = |k: usize| L::splat(node.b[k][i]);
+    slab(|a| b(near[a]), |a| b(near[a] ^ 1), ray, t_min, t_max)
 }
 
-/// Corner `c` of triangle `j` of `p` in each ray's sheared frame (as `shear_lanes` makes it
-/// for one ray): axes permuted by `k`, origins `so`, shear constants `ss`.
+/// Corner `c` of triangle `j` of `p` in each ray's sheared frame: axes permuted by `k`,
+/// origins `so`, shear constants `ss`.
 #[inline(always)]
 fn corner<L: BoxLanes<PACKET>>(
     p: &TriPacket,
@@ -128,10 +117,16 @@ fn corner<L: BoxLanes<PACKET>>(
     so: &[L; 3],
     ss: &[L; 3],
 ) -> (L, L, L) {
-    let ax = L::splat(p.v[c][k[0]][j]).sub(so[0]);
-    let ay = L::splat(p.v[c][k[1]][j]).sub(so[1]);
-    let az = L::splat(p.v[c][k[2]][j]).sub(so[2]);
-    (ax.sub(ss[0].mul(az)), ay.sub(ss[1].mul(az)), az)
+    let v = &p.v[c];
+    shear(
+        [
+            L::splat(v[k[0]][j]),
+            L::splat(v[k[1]][j]),
+            L::splat(v[k[2]][j]),
+        ],
+        so,
+        ss,
+    )
 }
 
 /// The closest hits of `rays` (as `traverse::closest` gives them) into `out`, or `false` when
@@ -216,7 +211,7 @@ pub(crate) fn closest<L: BoxLanes<PACKET>, S: F32x4>(
                     break;
                 }
                 let (t_near, t_far) =
-                    slabs(node, i as usize, &near, &o, &inv, &inv_far, t_min, best.t);
+                    slabs(node, i as usize, &near, [&o, &inv, &inv_far], t_min, best.t);
                 let entered = t_near.le_bits(t_far);
                 if entered != 0 {
                     let first = t_near.to_array()[entered.trailing_zeros() as usize];

@@ -12,7 +12,7 @@ use std::mem::MaybeUninit;
 
 use super::wide::{leaf_range, Node, LEAF_BIT};
 use crate::ray::Ray;
-use crate::simd::{BoxLanes, F32x4};
+use crate::simd::{BoxLanes, F32x4, Lanes};
 use crate::triangle::{before, intersect_packet, lane_f64, RayShear, RayShearLanes, TriPacket};
 
 /// Traversal stack entries. The builder bounds the tree depth by `SAH_MAX_DEPTH + 32 = 80`,
@@ -57,12 +57,34 @@ impl<const W: usize, B: BoxLanes<W>> RayBox<W, B> {
         // SAFETY: `near[a]` is `2 * a` or `2 * a + 1` (see `new`), and so is `near[a] ^ 1`:
         // both are below 6, the length of `n.b`.
         let b = |i: usize| B::load(unsafe { n.b.get_unchecked(i) });
-        let tn = |a: usize| b(self.near[a]).sub(self.o[a]).mul(self.inv[a]);
-        let tf = |a: usize| b(self.near[a] ^ 1).sub(self.o[a]).mul(self.inv_far[a]);
-        let t_near = tn(0).max(tn(1).max(tn(2).max(t_min)));
-        let t_far = tf(0).min(tf(1).min(tf(2).min(t_max)));
+        let (t_near, t_far) = slab(
+            |a| b(self.near[a]),
+            |a| b(self.near[a] ^ 1),
+            [&self.o, &self.inv, &self.inv_far],
+            t_min,
+            t_max,
+        );
         (t_near.le_bits(t_far), t_near)
     }
+}
+
+/// The slab test's entry and exit distances, from the near and far bounds along axis `a`
+/// (`near(a)`, `far(a)`) and the ray's `[origin, 1 / d, scaled 1 / d]`: the arithmetic every
+/// lane layout shares (a node's children for one ray, or one child for a packet of rays).
+#[inline(always)]
+pub(super) fn slab<B: Lanes>(
+    near: impl Fn(usize) -> B,
+    far: impl Fn(usize) -> B,
+    [o, inv, inv_far]: [&[B; 3]; 3],
+    t_min: B,
+    t_max: B,
+) -> (B, B) {
+    let tn = |a: usize| near(a).sub(o[a]).mul(inv[a]);
+    let tf = |a: usize| far(a).sub(o[a]).mul(inv_far[a]);
+    (
+        tn(0).max(tn(1).max(tn(2).max(t_min))),
+        tf(0).min(tf(1).min(tf(2).min(t_max))),
+    )
 }
 
 /// A deferred subtree and the distance at which the ray enters its box.
