@@ -53,6 +53,24 @@ pub(crate) trait Lanes: Copy {
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
 }
 
+/// The indices of the set bits of a lane mask, lowest first.
+#[derive(Clone, Copy)]
+pub(crate) struct SetBits(pub u32);
+
+impl Iterator for SetBits {
+    type Item = usize;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<usize> {
+        if self.0 == 0 {
+            return None;
+        }
+        let i = self.0.trailing_zeros() as usize;
+        self.0 &= self.0 - 1;
+        Some(i)
+    }
+}
+
 /// Four lanes: one ray against the four triangles of a packet.
 pub(crate) trait F32x4: Lanes<Array = [f32; 4]> {}
 

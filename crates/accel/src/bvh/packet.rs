@@ -17,7 +17,7 @@
 use super::traverse::{child, closest_in, leaf_at, node_at, slab, Best, Near, Stack, FAR_SCALE};
 use super::wide::{Node, EMPTY_CHILD, LEAF_BIT, WIDTH};
 use crate::ray::Ray;
-use crate::simd::{BoxLanes, F32x4};
+use crate::simd::{BoxLanes, F32x4, SetBits};
 use crate::triangle::{before, edge_test, lane_f64, shear, RayShear, TriPacket};
 
 /// Rays per packet ([`NativeBvh::intersect_packet`](crate::NativeBvh::intersect_packet)): as
@@ -243,14 +243,12 @@ pub(crate) fn closest<L: BoxLanes<PACKET>, S: F32x4>(
                     let (hits, redo_lanes) = (h.hits & active, h.redo & active);
                     if hits != 0 {
                         let nearer = L::bits(h.t.lt(best.t)) & hits;
-                        let mut tied = L::bits(h.t.eq(best.t)) & hits & !nearer;
+                        let tied = L::bits(h.t.eq(best.t)) & hits & !nearer;
                         let mut update = nearer;
                         if tied != 0 {
                             let ids = best.id.to_array();
-                            while tied != 0 {
-                                let i = tied.trailing_zeros();
-                                tied &= tied - 1;
-                                if id < ids[i as usize].to_bits() {
+                            for i in SetBits(tied) {
+                                if id < ids[i].to_bits() {
                                     update |= 1 << i;
                                 }
                             }
@@ -297,15 +295,13 @@ fn alone<L: BoxLanes<PACKET>, S: F32x4>(
     nodes: &[Node<WIDTH>],
     packets: &[TriPacket],
     root: u32,
-    mut lanes: u32,
+    lanes: u32,
     rays: &[Ray; PACKET],
     shears: &[RayShear; PACKET],
     best: &mut BestLanes<L>,
 ) {
     let mut a = best.arrays();
-    while lanes != 0 {
-        let i = lanes.trailing_zeros() as usize;
-        lanes &= lanes - 1;
+    for i in SetBits(lanes) {
         let b = closest_in::<WIDTH, L, S>(nodes, packets, &rays[i], &shears[i], root, a.get(i));
         a.put(i, b);
     }
@@ -319,15 +315,13 @@ fn alone<L: BoxLanes<PACKET>, S: F32x4>(
 fn redo<L: BoxLanes<PACKET>>(
     p: &TriPacket,
     j: usize,
-    mut lanes: u32,
+    lanes: u32,
     shears: &[RayShear; PACKET],
     rays: &[Ray; PACKET],
     best: &mut BestLanes<L>,
 ) {
     let mut a = best.arrays();
-    while lanes != 0 {
-        let i = lanes.trailing_zeros() as usize;
-        lanes &= lanes - 1;
+    for i in SetBits(lanes) {
         let (id, t, ..) = a.get(i);
         if let Some((ht, hu, hv)) = lane_f64(p, j, &shears[i], rays[i].t_min, t) {
             if before(ht, p.id[j], t, id) {
