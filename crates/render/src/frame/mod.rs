@@ -70,6 +70,10 @@ pub struct FrameReport {
     pub accumulated: u32,
     /// Samples per pixel in the history.
     pub spp: u32,
+    /// Samples traced in this frame, over all pixels (each a camera path). Divided by the
+    /// pixel count: the frame's mean samples per pixel, which differs from `spp` per frame
+    /// when a technique (adaptive sampling) gives pixels different counts.
+    pub samples: u64,
     /// False when accumulation had reached `max_frames`: nothing was traced and the history
     /// is as it was.
     pub traced: bool,
@@ -201,6 +205,7 @@ impl Pipeline {
         let max = self.config.frame.max_frames;
         let traced = !(self.config.frame.accumulate && max > 0 && self.frames >= max);
         let mut rays = 0;
+        let mut samples = 0;
         if traced {
             let camera = self.camera.as_ref().expect("set by start_epoch");
             let tracer = PathTracer {
@@ -210,6 +215,7 @@ impl Pipeline {
             };
             let spp = self.epoch_config.spp.max(1);
             let index = self.frames.saturating_mul(spp);
+            samples = spp as u64 * self.history.len() as u64;
 
             // Primary visibility and lighting run by runs of pixels: a run's first hits go
             // straight from one pass to the other while they are in cache. Each pass's time is
@@ -262,6 +268,7 @@ impl Pipeline {
             accumulated: self.frames,
             spp: self.history.first().map_or(0, |h| h.n),
             traced,
+            samples,
             passes,
             ms: start.elapsed().as_secs_f64() * 1e3,
             rays,
