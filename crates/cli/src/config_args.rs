@@ -84,7 +84,8 @@ pub struct ConfigArgs {
     pub tonemap: Option<Tonemap>,
 
     /// What frames show (view, play): final, noisy, direct, indirect, variance, samples,
-    /// albedo, normal, depth, motion, roughness, metallic, bounce-albedo, bounce-direction.
+    /// albedo, normal, depth, motion, roughness, metallic, bounce-albedo, bounce-direction,
+    /// probability, reprojected, rejection.
     #[arg(long, value_name = "MODE", value_parser = parse_display)]
     pub display: Option<DisplayMode>,
 
@@ -95,6 +96,33 @@ pub struct ConfigArgs {
     /// Frame pipeline: stop accumulating after this many frames (0: never).
     #[arg(long, value_name = "N")]
     pub max_frames: Option<u32>,
+
+    /// Seed 000's adaptive sampling: samples where the pixels' variance is (with
+    /// --reprojection: the combination).
+    #[arg(long)]
+    pub adaptive: bool,
+
+    /// Adaptive sampling: samples every pixel gets before the threshold applies [default: 4].
+    #[arg(long, value_name = "N")]
+    pub min_spp: Option<u32>,
+
+    /// Adaptive sampling: the iteration at which each pixel's probability is fixed
+    /// [default: 32].
+    #[arg(long, value_name = "N")]
+    pub max_spp: Option<u32>,
+
+    /// Seed 000's forward reprojection: keep the samples that stay valid when the camera
+    /// moves.
+    #[arg(long)]
+    pub reprojection: bool,
+
+    /// Reprojection: states per pixel, 1 or 4 [default: 1].
+    #[arg(long, value_name = "N")]
+    pub reprojection_samples: Option<u32>,
+
+    /// Reprojection: largest view-dependency error (Eq. 15) kept [default: 1/256].
+    #[arg(long, value_name = "X")]
+    pub max_error: Option<f32>,
 }
 
 /// A bounce limit: a number, or none.
@@ -255,6 +283,13 @@ impl ConfigArgs {
         if let Some(v) = self.max_frames {
             c.frame.max_frames = v;
         }
+        let (adaptive, reprojection) = (&mut c.frame.adaptive, &mut c.frame.reprojection);
+        adaptive.enabled |= self.adaptive;
+        adaptive.min_spp = self.min_spp.unwrap_or(adaptive.min_spp);
+        adaptive.max_spp = self.max_spp.unwrap_or(adaptive.max_spp);
+        reprojection.enabled |= self.reprojection;
+        reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
+        reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);
         Ok(c)
     }
 }

@@ -7,6 +7,8 @@ use pathlight_scene::Camera as SceneCamera;
 use serde::{Deserialize, Serialize};
 
 use crate::bsdf::Microfacet;
+use crate::frame::adaptive::AdaptiveConfig;
+use crate::frame::reprojection::ReprojectionConfig;
 use crate::light::LightSelection;
 use crate::sampler::SamplerKind;
 
@@ -38,7 +40,8 @@ pub struct Config {
 
 /// The passes of the real-time frame pipeline ([`crate::frame`]) and their parameters. A
 /// frame traces `spp` samples per pixel (the first through the G-buffer), then accumulates
-/// them with the earlier frames while nothing changes.
+/// them with the earlier frames while nothing changes. Each technique's settings are its own
+/// module's type, gathered here by field.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FrameConfig {
@@ -47,6 +50,10 @@ pub struct FrameConfig {
     pub accumulate: bool,
     /// Accumulation stops adding samples after this many frames (0: never).
     pub max_frames: u32,
+    /// Seed 000's adaptive sampling.
+    pub adaptive: AdaptiveConfig,
+    /// Seed 000's forward reprojection (with `adaptive`: their combination).
+    pub reprojection: ReprojectionConfig,
 }
 
 impl Default for FrameConfig {
@@ -54,6 +61,8 @@ impl Default for FrameConfig {
         Self {
             accumulate: true,
             max_frames: 0,
+            adaptive: AdaptiveConfig::default(),
+            reprojection: ReprojectionConfig::default(),
         }
     }
 }
@@ -106,9 +115,28 @@ pub struct ConfigError {
 }
 
 impl ConfigError {
-    /// The field's name as a command-line option (`fov_y` is `--fov-y`).
+    /// The field's name as a command-line option (`fov_y` is `--fov-y`); a technique's
+    /// field, which has no flag of its own, by its place in the configuration file
+    /// (`frame.adaptive.min_spp`).
     pub fn option(&self) -> String {
-        format!("--{}", self.field.replace('_', "-"))
+        if self.field.contains('.') {
+            self.field.to_owned()
+        } else {
+            format!("--{}", self.field.replace('_', "-"))
+        }
+    }
+
+    /// A value out of range.
+    pub fn new(
+        field: &'static str,
+        value: impl std::fmt::Display,
+        requirement: impl Into<String>,
+    ) -> Self {
+        Self {
+            field,
+            value: value.to_string(),
+            requirement: requirement.into(),
+        }
     }
 }
 
@@ -148,7 +176,7 @@ impl Config {
 
     /// Checks every value's range: image sides in 1..=[`MAX_SIDE`], spp in 1..=[`MAX_SPP`],
     /// field of view in (0, 180), finite non-negative lens radius, finite positive focus
-    /// distance, finite camera vectors.
+    /// distance, finite camera vectors, and each technique's settings.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let err = |field, value: &dyn std::fmt::Display, requirement: String| ConfigError {
             field,
@@ -197,6 +225,8 @@ impl Config {
                 return Err(err(field, &format!("{v:?}"), "finite".into()));
             }
         }
+        self.frame.adaptive.validate()?;
+        self.frame.reprojection.validate()?;
         Ok(())
     }
 }

@@ -55,6 +55,12 @@ pub struct Bounce {
     /// Base colour at the first non-specular vertex after the first hit, through mirror and
     /// glass chains (seed 001's "texture2").
     pub albedo: Vec3,
+    /// Radiance that came back to the first hit along `direction` (seed 000's irradiance
+    /// `I` along the first outgoing direction): what the path gathered beyond the first hit
+    /// divided by the throughput of the first bounce. Emission reached there by BSDF sampling
+    /// counts with its multiple importance sampling weight. Zero unless asked for
+    /// ([`PathTracer::trace_from`]).
+    pub radiance: Vec3,
 }
 
 /// A surface a ray hit, with its shading: the first vertex of a path.
@@ -142,7 +148,7 @@ impl PathTracer<'_> {
         } = self.camera_sample(x, y, index);
         let mut rays = 0;
         let first = self.intersect(ray, &mut rng, &mut rays);
-        let mut out = self.trace_from(ray, first.as_ref(), sampler, rng);
+        let mut out = self.trace_from::<false>(ray, first.as_ref(), sampler, rng);
         out.rays += rays;
         out
     }
@@ -256,7 +262,10 @@ impl PathTracer<'_> {
     }
 
     /// Follows one path from `ray`, whose first surface (`intersect` of `ray`) is `first`.
-    pub fn trace_from(
+    /// `ALONG_FIRST_BOUNCE`: also measure [`Bounce::radiance`] (forward reprojection's `I`);
+    /// the plain path tracer leaves it zero and does not pay for it.
+    #[inline]
+    pub fn trace_from<const ALONG_FIRST_BOUNCE: bool>(
         &self,
         mut ray: Ray,
         first: Option<&Vertex>,
@@ -279,6 +288,10 @@ impl PathTracer<'_> {
         let mut next: Option<Vertex>;
         // The first non-specular vertex after the first hit has given its albedo.
         let mut bounce_albedo_found = false;
+        // The throughput of the first bounce (what `beta` is after it), and the radiance
+        // gathered by then (at the first hit).
+        let mut first_beta = Vec3::ZERO;
+        let mut at_first_hit = Vec3::ZERO;
         for bounce in 0..MAX_PATH_VERTICES {
             sampler.set_dimension(CAMERA_DIMENSIONS + bounce * VERTEX_DIMENSIONS);
             let found = if bounce == 0 {
@@ -433,6 +446,19 @@ impl PathTracer<'_> {
                     beta /= 1.0 - q;
                 }
             }
+            if ALONG_FIRST_BOUNCE && bounce == 0 {
+                first_beta = beta;
+                at_first_hit = out.direct;
+            }
+        }
+        if ALONG_FIRST_BOUNCE {
+            // What came back beyond the first hit, without the first bounce's throughput.
+            let beyond = (out.direct + out.indirect - at_first_hit).max(Vec3::ZERO);
+            out.bounce.radiance = Vec3::select(
+                first_beta.cmpgt(Vec3::ZERO),
+                beyond / first_beta,
+                Vec3::ZERO,
+            );
         }
         out
     }

@@ -66,8 +66,8 @@
 //! sample returns the one-sample-MIS density of the whole non-delta mixture and the sum of
 //! the non-delta lobes, exactly what `pdf` and `eval` return for that `wi`.
 
-mod fresnel;
-mod microfacet;
+pub(crate) mod fresnel;
+pub(crate) mod microfacet;
 #[cfg(test)]
 mod tests;
 

@@ -12,6 +12,7 @@ use crate::config::{DisplayConfig, Tonemap};
 use super::accumulation::PixelStats;
 use super::gbuffer::GBuffer;
 use super::lighting::LightSample;
+use super::reprojection::Reprojection;
 
 /// What is shown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -48,11 +49,21 @@ pub enum DisplayMode {
     BounceAlbedo,
     /// Lighting: the direction chosen at the first hit (mapped from [-1, 1] to [0, 1]).
     BounceDirection,
+    /// Adaptive sampling: each pixel's fixed probability P of a sample per frame, as a heat
+    /// map 0 to 1 (dark grey before the schedule fixes it).
+    Probability,
+    /// Reprojection: which pixels kept their history at the last camera move (white: all
+    /// their states, grey: some of the 4, black: none).
+    Reprojected,
+    /// Reprojection: what happened at the last camera move, per pixel: kept (green), newly
+    /// seen (black), occluded (red), view-dependency error (yellow), specular (blue), aliasing
+    /// depth test (magenta).
+    Rejection,
 }
 
 impl DisplayMode {
     /// Every mode with its pass, in menu order.
-    pub const ALL: [DisplayMode; 14] = [
+    pub const ALL: [DisplayMode; 17] = [
         DisplayMode::Final,
         DisplayMode::Noisy,
         DisplayMode::Direct,
@@ -67,6 +78,9 @@ impl DisplayMode {
         DisplayMode::Metallic,
         DisplayMode::BounceAlbedo,
         DisplayMode::BounceDirection,
+        DisplayMode::Probability,
+        DisplayMode::Reprojected,
+        DisplayMode::Rejection,
     ];
 
     /// The name in configurations and on the command line.
@@ -86,6 +100,9 @@ impl DisplayMode {
             DisplayMode::Metallic => "metallic",
             DisplayMode::BounceAlbedo => "bounce-albedo",
             DisplayMode::BounceDirection => "bounce-direction",
+            DisplayMode::Probability => "probability",
+            DisplayMode::Reprojected => "reprojected",
+            DisplayMode::Rejection => "rejection",
         }
     }
 
@@ -93,7 +110,8 @@ impl DisplayMode {
     pub fn pass(self) -> &'static str {
         use DisplayMode::*;
         match self {
-            Final | Direct | Indirect | Variance | Samples => super::ACCUMULATE,
+            Final | Direct | Indirect | Variance | Samples | Probability => super::ACCUMULATE,
+            Reprojected | Rejection => super::REPROJECT,
             Noisy | BounceAlbedo | BounceDirection => super::LIGHTING,
             Albedo | Normal | Depth | Motion | Roughness | Metallic => super::PRIMARY,
         }
@@ -127,12 +145,17 @@ pub struct Sources<'a> {
     pub gbuffer: &'a GBuffer,
     pub lighting: &'a [LightSample],
     pub history: &'a [PixelStats],
+    /// Adaptive sampling's probabilities (empty when it never ran).
+    pub probability: &'a [f32],
+    pub reprojection: &'a Reprojection,
 }
 
 impl Sources<'_> {
     /// The linear value of `mode` at pixel `i`: radiance, the feature itself (normal and
     /// direction in [-1, 1], depth in scene units with the sky infinite, motion in pixels as
-    /// (x, y, 0), albedo), the variance of the accumulated mean, or the sample count.
+    /// (x, y, 0), albedo), the variance of the accumulated mean, the sample count, the
+    /// probability (-1 before it is fixed), the fraction of states reprojected, or the
+    /// [`Fate`](super::reprojection::Fate) as a number.
     pub fn value(&self, mode: DisplayMode, i: usize) -> Vec3 {
         let g = &self.gbuffer.pixels[i];
         let l = &self.lighting[i];
@@ -152,6 +175,15 @@ impl Sources<'_> {
             DisplayMode::Metallic => Vec3::splat(g.metallic),
             DisplayMode::BounceAlbedo => l.bounce.albedo,
             DisplayMode::BounceDirection => l.bounce.direction,
+            DisplayMode::Probability => {
+                Vec3::splat(self.probability.get(i).copied().unwrap_or(-1.0))
+            }
+            DisplayMode::Reprojected => {
+                let r = self.reprojection;
+                let kept = r.kept.get(i).copied().unwrap_or(0);
+                Vec3::splat(kept as f32 / r.samples.max(1) as f32)
+            }
+            DisplayMode::Rejection => Vec3::splat(self.reprojection.fate(i) as u8 as f32),
         }
     }
 
@@ -220,6 +252,15 @@ impl Sources<'_> {
             DisplayMode::Samples => fill(out, |i| {
                 unorm8(Vec3::splat(self.value(mode, i).x / max_n.max(1) as f32))
             }),
+            DisplayMode::Probability => fill(out, |i| {
+                let p = self.value(mode, i).x;
+                if p < 0.0 {
+                    [40, 40, 40]
+                } else {
+                    viridis(p)
+                }
+            }),
+            DisplayMode::Rejection => fill(out, |i| self.reprojection.fate(i).colour()),
             _ => fill(out, |i| unorm8(self.value(mode, i))),
         }
     }

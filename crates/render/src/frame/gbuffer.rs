@@ -91,7 +91,7 @@ impl GBuffer {
 /// (the caller traces a run's camera rays together). `previous` is the camera of the previous
 /// frame (motion vectors). Returns the G-buffer pixel, the hit for the lighting pass and the
 /// rays traced.
-#[inline]
+#[inline(always)]
 pub fn primary(
     tracer: &PathTracer,
     sample: CameraSample,

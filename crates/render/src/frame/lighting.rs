@@ -20,9 +20,10 @@ pub struct LightSample {
 
 /// The lighting pass for one pixel: `spp` samples, indices `index..index + spp`; sample
 /// `index` continues from `hit` (the primary pass's, same index). Returns the pixel's lighting
-/// and the rays traced.
-#[inline]
-pub fn lighting(
+/// and the rays traced. `ALONG_FIRST_BOUNCE`: the first sample measures the radiance along
+/// its first bounce ([`crate::path::Bounce::radiance`]).
+#[inline(always)]
+pub fn lighting<const ALONG_FIRST_BOUNCE: bool>(
     tracer: &PathTracer,
     x: u32,
     y: u32,
@@ -30,7 +31,7 @@ pub fn lighting(
     index: u32,
     spp: u32,
 ) -> (LightSample, u64) {
-    let s = tracer.trace_from(
+    let s = tracer.trace_from::<ALONG_FIRST_BOUNCE>(
         hit.ray,
         hit.first.as_ref(),
         hit.sampler.clone(),

@@ -2,27 +2,41 @@
 //! buffers, each a function from named inputs to named outputs.
 //!
 //! ```text
-//! primary     camera, previous camera        -> G-buffer (features, motion, first hits)
-//! lighting    G-buffer                        -> lighting (direct / indirect statistics, bounce)
-//! accumulate  lighting, history               -> history (running statistics over frames)
-//! display     history, lighting, G-buffer     -> 8-bit RGBA of the chosen display mode
+//! reproject   states, previous camera, camera     -> states and history in the new view
+//!             (seed 000, after a camera move; [`reprojection`])
+//! primary     camera, previous camera, plan       -> G-buffer (features, motion, first hits)
+//! lighting    G-buffer, plan                      -> lighting (direct / indirect statistics,
+//!                                                    first bounce)
+//! accumulate  lighting, history (states)          -> history (running statistics over frames)
+//! display     history, lighting, G-buffer, ...    -> 8-bit RGBA of the chosen display mode
 //! ```
+//!
+//! The *plan* says which pixels the primary and lighting passes trace and from which sample
+//! index: every pixel from `frames * spp` in the plain pipeline; with seed 000's techniques,
+//! each pixel from its own sample count, and with adaptive sampling ([`adaptive`]) only the
+//! pixels its schedule picks.
 //!
 //! One [`Config`] drives it: the resolution, samples per frame, bounces, the passes' switches
 //! and parameters ([`crate::config::FrameConfig`]) and the display. While the camera and the
 //! settings stay the same, frames accumulate (progressive refinement); any change starts a
-//! new *epoch*: the history is cleared and the samples are drawn afresh. Frame `f` of an epoch
-//! takes sample indices `f * spp ..`, and epoch 0 uses the configuration's seed unchanged, so
-//! `N` still frames of one sample are the reference path tracer's image at `N` samples per
-//! pixel. Later epochs use seeds hashed from it, so every frame is deterministic for a given
-//! scene, configuration and sequence of camera moves, whatever the thread count.
+//! new *epoch*: the samples are drawn afresh and the history is cleared, except that with
+//! forward reprojection on, a change of the camera alone carries the history into the new
+//! view. Frame `f` of an epoch takes sample indices `f * spp ..`, and epoch 0 uses the
+//! configuration's seed unchanged, so `N` still frames of one sample are the reference path
+//! tracer's image at `N` samples per pixel. Later epochs use seeds hashed from it, so every
+//! frame is deterministic for a given scene, configuration and sequence of camera moves,
+//! whatever the thread count. With the techniques' switches off, frames are bit for bit those
+//! of the plain pipeline.
 //!
 //! Buffers live across frames and are reallocated only when the resolution changes.
 
 pub mod accumulation;
+pub mod adaptive;
 pub mod display;
 pub mod gbuffer;
 pub mod lighting;
+pub mod ping_pong;
+pub mod reprojection;
 
 use std::time::Instant;
 
@@ -36,17 +50,20 @@ use crate::path::PathTracer;
 use crate::world::World;
 
 use accumulation::PixelStats;
+use adaptive::{Adaptive, Schedule, NO_PROBABILITY};
 use display::{DisplayMode, Sources};
-use gbuffer::GBuffer;
+use gbuffer::{GBuffer, GPixel};
 use lighting::LightSample;
+use reprojection::{Reprojection, ReprojectionReport};
 
 /// The passes' names, as in timings and display modes.
+pub const REPROJECT: &str = "reproject";
 pub const PRIMARY: &str = "primary";
 pub const LIGHTING: &str = "lighting";
 pub const ACCUMULATE: &str = "accumulate";
 pub const DISPLAY: &str = "display";
 /// Every pass, in the order a frame runs them.
-pub const PASSES: [&str; 4] = [PRIMARY, LIGHTING, ACCUMULATE, DISPLAY];
+pub const PASSES: [&str; 5] = [REPROJECT, PRIMARY, LIGHTING, ACCUMULATE, DISPLAY];
 
 /// Pixels per parallel task: a run of pixels in row-major order, small enough that its first
 /// hits stay in the L1/L2 cache between the primary and the lighting pass.
@@ -80,8 +97,15 @@ pub struct FrameReport {
     pub passes: Vec<PassTime>,
     /// Wall time of the whole frame.
     pub ms: f64,
-    /// Rays traced (closest-hit and shadow queries).
+    /// Rays traced (closest-hit and shadow queries; the reprojection pass's occlusion rays
+    /// are not counted).
     pub rays: u64,
+    /// What forward reprojection did, on the frame after a camera move.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reprojection: Option<ReprojectionReport>,
+    /// Adaptive sampling's threshold this frame (`None` off, or past the schedule).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tau: Option<f32>,
 }
 
 impl FrameReport {
@@ -110,11 +134,26 @@ pub struct Pipeline {
     pub history: Vec<PixelStats>,
     /// The display pass's output: 8-bit RGBA, row-major.
     pub rgba: Vec<u8>,
+    /// Adaptive sampling's per-pixel state (seed 000).
+    pub adaptive: Adaptive,
+    /// Forward reprojection's per-pixel states (seed 000).
+    pub reprojection: Reprojection,
     epoch: u64,
     frames: u32,
     frame_number: u64,
-    /// True when the next frame must start a new epoch.
-    stale: bool,
+    /// Why the next frame must start a new epoch (none: it continues this one).
+    reset: Option<Reset>,
+    /// This frame follows a reprojection: its accumulation runs the aliasing test.
+    after_move: bool,
+}
+
+/// Why a frame starts a new epoch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reset {
+    /// The camera's view changed and nothing else: reprojection may carry the history over.
+    Camera,
+    /// Anything else that changes the image (or the first frame): start afresh.
+    Settings,
 }
 
 impl Pipeline {
@@ -129,10 +168,13 @@ impl Pipeline {
             lighting: Vec::new(),
             history: Vec::new(),
             rgba: Vec::new(),
+            adaptive: Adaptive::default(),
+            reprojection: Reprojection::default(),
             epoch: 0,
             frames: 0,
             frame_number: 0,
-            stale: true,
+            reset: Some(Reset::Settings),
+            after_move: false,
         }
     }
 
@@ -147,7 +189,8 @@ impl Pipeline {
 
     /// Replaces the configuration. Anything that changes the image (camera, resolution,
     /// samples, passes) starts a new epoch at the next frame; the display settings and
-    /// `max_frames` do not.
+    /// `max_frames` do not. A change of the view alone (position, direction, up, field of
+    /// view) is a camera move, which forward reprojection survives.
     pub fn set_config(&mut self, config: &Config) {
         let image = |c: &Config| Config {
             display: Default::default(),
@@ -157,15 +200,38 @@ impl Pipeline {
             },
             ..c.clone()
         };
-        if image(config) != image(&self.config) {
-            self.stale = true;
+        let (new, old) = (image(config), image(&self.config));
+        if new != old {
+            let view = |c: &Config| crate::config::CameraConfig {
+                look_from: None,
+                look_at: None,
+                up: None,
+                fov_y: None,
+                ..c.camera.clone()
+            };
+            let moved = Config {
+                camera: view(&new),
+                ..new.clone()
+            } == Config {
+                camera: view(&old),
+                ..old
+            };
+            let reset = if moved {
+                Reset::Camera
+            } else {
+                Reset::Settings
+            };
+            self.reset = Some(match self.reset {
+                Some(Reset::Settings) => Reset::Settings,
+                _ => reset,
+            });
         }
         self.config = config.clone();
     }
 
-    /// Clears the history: the next frame starts a new epoch.
+    /// Clears the history: the next frame starts a new epoch afresh.
     pub fn reset(&mut self) {
-        self.stale = true;
+        self.reset = Some(Reset::Settings);
     }
 
     /// Frames accumulated in this epoch.
@@ -173,8 +239,9 @@ impl Pipeline {
         self.frames
     }
 
-    /// Starts a new epoch: camera, seed, buffers.
-    fn start_epoch(&mut self, world: &World) {
+    /// Starts a new epoch: camera, seed, buffers; the techniques' state carried into the new
+    /// view (returns what reprojection did) or cleared.
+    fn start_epoch(&mut self, world: &World, reset: Reset) -> Option<ReprojectionReport> {
         if self.frame_number > 0 {
             self.epoch += 1;
         }
@@ -184,28 +251,86 @@ impl Pipeline {
             c.seed = hash(&[self.config.seed, self.epoch]);
         }
         self.epoch_config = c;
-        self.camera = Some(world.camera(&self.config));
+        let previous = self.camera.take();
+        let camera = world.camera(&self.config);
         let (w, h) = (self.config.width, self.config.height);
+        let resized = (self.gbuffer.width, self.gbuffer.height) != (w, h);
         self.gbuffer.resize(w, h);
         let n = w as usize * h as usize;
         // Same size: kept as they are (the first frame of the epoch overwrites the history).
         self.history.resize(n, PixelStats::default());
         self.lighting.resize(n, LightSample::default());
-        self.stale = false;
+        self.after_move = false;
+        let frame = &self.config.frame;
+        let mut report = None;
+        if frame.adaptive.enabled || frame.reprojection.enabled {
+            let k = frame.reprojection.samples as usize;
+            let r = &mut self.reprojection;
+            let carry = frame.reprojection.enabled
+                && frame.accumulate
+                && reset == Reset::Camera
+                && r.valid
+                && r.samples == k
+                && !resized
+                && self.adaptive.probability.len() == n;
+            match previous.as_ref().filter(|_| carry) {
+                Some(previous) => {
+                    report = Some(r.reproject(
+                        world,
+                        previous,
+                        &camera,
+                        w,
+                        &frame.reprojection,
+                        &mut self.history,
+                        &mut self.adaptive.probability,
+                    ));
+                    self.after_move = true;
+                }
+                None => {
+                    self.history.fill(PixelStats::default());
+                    self.adaptive.reset(n);
+                    if frame.reprojection.enabled {
+                        r.reset(n, k);
+                    } else {
+                        r.valid = false;
+                    }
+                }
+            }
+        } else {
+            self.reprojection.valid = false;
+        }
+        self.camera = Some(camera);
+        report
     }
 
-    /// Renders one frame of `world`: primary visibility, lighting and accumulation. The
-    /// display pass is [`display`](Self::display), run by those who show or write frames.
+    /// Renders one frame of `world`: reprojection (after a camera move, when on), primary
+    /// visibility, lighting and accumulation. The display pass is
+    /// [`display`](Self::display), run by those who show or write frames.
     pub fn render_frame(&mut self, world: &World) -> FrameReport {
         let start = Instant::now();
-        if self.stale || !self.config.frame.accumulate {
-            self.start_epoch(world);
+        let mut passes = Vec::with_capacity(5);
+        let mut reprojection = None;
+        let reset = match self.reset.take() {
+            None if !self.config.frame.accumulate => Some(Reset::Settings),
+            r => r,
+        };
+        if let Some(reset) = reset {
+            let t = Instant::now();
+            reprojection = self.start_epoch(world, reset);
+            if reprojection.is_some() {
+                passes.push(PassTime {
+                    pass: REPROJECT,
+                    ms: t.elapsed().as_secs_f64() * 1e3,
+                });
+            }
         }
-        let mut passes = Vec::with_capacity(4);
         let max = self.config.frame.max_frames;
         let traced = !(self.config.frame.accumulate && max > 0 && self.frames >= max);
         let mut rays = 0;
         let mut samples = 0;
+        let mut tau = None;
+        let frame = &self.config.frame;
+        let techniques = frame.adaptive.enabled || frame.reprojection.enabled;
         if traced {
             let camera = self.camera.as_ref().expect("set by start_epoch");
             let tracer = PathTracer {
@@ -214,21 +339,52 @@ impl Pipeline {
                 config: &self.epoch_config,
             };
             let spp = self.epoch_config.spp.max(1);
-            let index = self.frames.saturating_mul(spp);
-            samples = spp as u64 * self.history.len() as u64;
+            let pixels = self.history.len() as u64;
 
             // Primary visibility and lighting run by runs of pixels: a run's first hits go
             // straight from one pass to the other while they are in cache. Each pass's time is
             // the wall time split in proportion to the thread time it took.
             let t = Instant::now();
-            let (r, primary_s, lighting_s) = trace(
-                &mut self.gbuffer,
-                &mut self.lighting,
-                self.previous_camera.as_ref(),
-                &tracer,
-                index,
-                spp,
-            );
+            let previous = self.previous_camera.as_ref();
+            let (r, primary_s, lighting_s) = if techniques {
+                let schedule = frame.adaptive.enabled.then(|| {
+                    Schedule::new(
+                        &frame.adaptive,
+                        self.frames,
+                        frame.reprojection.enabled,
+                        self.epoch_config.seed,
+                    )
+                });
+                tau = schedule.filter(|s| s.iteration < s.max_spp).map(|s| s.tau);
+                let plan = Planned {
+                    history: &self.history,
+                    probability: &self.adaptive.probability,
+                    schedule,
+                    after_move: self
+                        .after_move
+                        .then_some((&self.reprojection, frame.reprojection.depth_tolerance)),
+                    reprojection: frame.reprojection.enabled,
+                };
+                trace(
+                    &mut self.gbuffer,
+                    &mut self.lighting,
+                    previous,
+                    &tracer,
+                    spp,
+                    &plan,
+                )
+            } else {
+                samples = spp as u64 * pixels;
+                let index = self.frames.saturating_mul(spp);
+                trace(
+                    &mut self.gbuffer,
+                    &mut self.lighting,
+                    previous,
+                    &tracer,
+                    spp,
+                    &Uniform(index),
+                )
+            };
             rays += r;
             let wall = t.elapsed().as_secs_f64() * 1e3;
             let primary_ms = wall * primary_s / (primary_s + lighting_s).max(1e-12);
@@ -242,36 +398,75 @@ impl Pipeline {
             });
 
             let t = Instant::now();
-            let first = self.frames == 0;
-            self.history
-                .par_iter_mut()
-                .zip(self.lighting.par_iter())
-                .for_each(|(h, l)| {
-                    if first {
-                        *h = l.stats;
-                    } else {
-                        h.merge(&l.stats);
+            if techniques {
+                samples = self.lighting.par_iter().map(|l| l.stats.n as u64).sum();
+                if frame.reprojection.enabled {
+                    let dropped = self.reprojection.accumulate(
+                        world,
+                        camera,
+                        &self.gbuffer,
+                        &self.lighting,
+                        frame.reprojection.depth_tolerance,
+                        self.after_move,
+                        &mut self.history,
+                        &mut self.adaptive.probability,
+                    );
+                    if let Some(r) = reprojection.as_mut() {
+                        r.aliasing = dropped;
+                        r.kept -= dropped;
                     }
-                });
+                } else {
+                    self.history
+                        .par_iter_mut()
+                        .zip(self.lighting.par_iter())
+                        .for_each(|(h, l)| h.merge(&l.stats));
+                }
+                let a = &frame.adaptive;
+                if a.enabled && self.frames + 1 == a.max_spp {
+                    self.adaptive
+                        .fix_probabilities(&self.history, a.max_spp, a.cap);
+                }
+            } else {
+                let first = self.frames == 0;
+                self.history
+                    .par_iter_mut()
+                    .zip(self.lighting.par_iter())
+                    .for_each(|(h, l)| {
+                        if first {
+                            *h = l.stats;
+                        } else {
+                            h.merge(&l.stats);
+                        }
+                    });
+            }
             passes.push(PassTime {
                 pass: ACCUMULATE,
                 ms: t.elapsed().as_secs_f64() * 1e3,
             });
 
+            self.after_move = false;
             self.frames += 1;
             self.previous_camera = self.camera.clone();
         }
         self.frame_number += 1;
+        let spp = if techniques {
+            let total: u64 = self.history.par_iter().map(|h| h.n as u64).sum();
+            (total / self.history.len().max(1) as u64) as u32
+        } else {
+            self.history.first().map_or(0, |h| h.n)
+        };
         FrameReport {
             frame: self.frame_number,
             epoch: self.epoch,
             accumulated: self.frames,
-            spp: self.history.first().map_or(0, |h| h.n),
+            spp,
             traced,
             samples,
             passes,
             ms: start.elapsed().as_secs_f64() * 1e3,
             rays,
+            reprojection,
+            tau,
         }
     }
 
@@ -279,16 +474,10 @@ impl Pipeline {
     /// [`rgba`](Self::rgba); its time is added to `report`.
     pub fn display(&mut self, report: &mut FrameReport) {
         let t = Instant::now();
-        let sources = Sources {
-            gbuffer: &self.gbuffer,
-            lighting: &self.lighting,
-            history: &self.history,
-        };
-        sources.rgba8(
-            self.config.display.mode,
-            &self.config.display,
-            &mut self.rgba,
-        );
+        let mut rgba = std::mem::take(&mut self.rgba);
+        self.sources()
+            .rgba8(self.config.display.mode, &self.config.display, &mut rgba);
+        self.rgba = rgba;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         report.passes.push(PassTime { pass: DISPLAY, ms });
         report.ms += ms;
@@ -300,6 +489,8 @@ impl Pipeline {
             gbuffer: &self.gbuffer,
             lighting: &self.lighting,
             history: &self.history,
+            probability: &self.adaptive.probability,
+            reprojection: &self.reprojection,
         }
     }
 
@@ -309,15 +500,94 @@ impl Pipeline {
     }
 }
 
-/// The primary and lighting passes over every pixel, run by run in parallel. Returns the
-/// rays traced and the thread time (seconds) of each pass.
-fn trace(
+/// Which pixels a frame traces, and from which sample index.
+trait Plan: Sync {
+    /// Every pixel is traced from [`sample`](Self::sample)`(0)` and lit: the plain
+    /// pipeline's loops, without per-pixel bookkeeping.
+    const EVERY_PIXEL: bool = false;
+    /// The first sample index of pixel `pixel` this frame; `None`: the pixel is not traced
+    /// (its G-buffer pixel stays as it was, its lighting is empty).
+    fn sample(&self, pixel: usize) -> Option<u32>;
+    /// After the primary pass filled G-buffer pixel `g`: whether the lighting pass samples
+    /// the pixel.
+    fn keep(&self, pixel: usize, g: &GPixel) -> bool;
+    /// The lighting pass measures the radiance along each pixel's first bounce.
+    fn along_first_bounce(&self) -> bool {
+        false
+    }
+}
+
+/// The plain pipeline: every pixel, all from one sample index.
+struct Uniform(u32);
+
+impl Plan for Uniform {
+    const EVERY_PIXEL: bool = true;
+
+    #[inline(always)]
+    fn sample(&self, _: usize) -> Option<u32> {
+        Some(self.0)
+    }
+
+    #[inline(always)]
+    fn keep(&self, _: usize, _: &GPixel) -> bool {
+        true
+    }
+}
+
+/// Seed 000's techniques: each pixel continues its own sample sequence; adaptive sampling
+/// picks the pixels.
+struct Planned<'a> {
+    history: &'a [PixelStats],
+    probability: &'a [f32],
+    schedule: Option<Schedule>,
+    /// The frame after a reprojection, with the aliasing test's tolerance: every pixel gets
+    /// its primary ray (the test needs the new G-buffer), and adaptive sampling decides on
+    /// the states that survive the test.
+    after_move: Option<(&'a Reprojection, f32)>,
+    /// Forward reprojection is on: its states need the radiance along the first bounce.
+    reprojection: bool,
+}
+
+impl Plan for Planned<'_> {
+    fn along_first_bounce(&self) -> bool {
+        self.reprojection
+    }
+
+    #[inline]
+    fn sample(&self, pixel: usize) -> Option<u32> {
+        let h = &self.history[pixel];
+        match &self.schedule {
+            Some(s) if self.after_move.is_none() => {
+                s.wants(pixel, h, self.probability[pixel]).then_some(h.n)
+            }
+            _ => Some(h.n),
+        }
+    }
+
+    #[inline]
+    fn keep(&self, pixel: usize, g: &GPixel) -> bool {
+        let (Some(s), Some((reprojection, tolerance))) = (&self.schedule, self.after_move) else {
+            return true;
+        };
+        let h = reprojection.surviving(pixel, g, tolerance);
+        let p = if h.n == 0 {
+            NO_PROBABILITY
+        } else {
+            self.probability[pixel]
+        };
+        s.wants(pixel, &h, p)
+    }
+}
+
+/// The primary and lighting passes over the pixels `plan` picks, run by run in parallel.
+/// Returns the rays traced and the thread time (seconds) of each pass.
+fn trace<P: Plan>(
     gbuffer: &mut GBuffer,
     lighting: &mut [LightSample],
     previous: Option<&Camera>,
     tracer: &PathTracer,
-    index: u32,
     spp: u32,
+    plan: &P,
 ) -> (u64, f64, f64) {
     let w = gbuffer.width.max(1) as usize;
     gbuffer
@@ -332,9 +602,10 @@ fn trace(
                     Vec::with_capacity(RUN),
                     Vec::with_capacity(RUN),
                     Vec::with_capacity(RUN),
+                    Vec::with_capacity(RUN),
                 )
             },
-            |(cameras, camera_rays, first_hits, hits), (b, (gpixels, lpixels))| {
+            |(cameras, camera_rays, first_hits, hits, traced), (b, (gpixels, lpixels))| {
                 // The pixels of the run, in order (no division per pixel).
                 let start = b * RUN;
                 let pixels = || {
@@ -353,30 +624,74 @@ fn trace(
                 // The run's camera samples first, in a loop of independent iterations, so that
                 // their hash and Sobol latency chains overlap instead of stalling each trace.
                 cameras.clear();
-                cameras.extend(
-                    pixels()
-                        .take(gpixels.len())
-                        .map(|(x, y)| tracer.camera_sample(x, y, index)),
-                );
+                traced.clear();
+                if P::EVERY_PIXEL {
+                    let index = plan.sample(start).unwrap_or(0);
+                    cameras.extend(
+                        pixels()
+                            .take(gpixels.len())
+                            .map(|(x, y)| tracer.camera_sample(x, y, index)),
+                    );
+                } else {
+                    for (k, (x, y)) in pixels().take(gpixels.len()).enumerate() {
+                        match plan.sample(start + k) {
+                            Some(index) => {
+                                cameras.push(tracer.camera_sample(x, y, index));
+                                traced.push((k, x, y, index));
+                            }
+                            None => lpixels[k] = LightSample::default(),
+                        }
+                    }
+                }
                 // Their rays together: neighbouring pixels' rays go as packets.
                 camera_rays.clear();
                 camera_rays.extend(cameras.iter().map(|c| c.ray));
                 first_hits.resize(camera_rays.len(), None);
                 tracer.world.accel.intersect_batch(camera_rays, first_hits);
                 hits.clear();
-                for ((g, sample), &first) in
-                    gpixels.iter_mut().zip(cameras.drain(..)).zip(&*first_hits)
-                {
-                    let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
-                    *g = pixel;
-                    hits.push(hit);
-                    rays += r as u64;
+                if P::EVERY_PIXEL {
+                    for ((g, sample), &first) in
+                        gpixels.iter_mut().zip(cameras.drain(..)).zip(&*first_hits)
+                    {
+                        let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
+                        *g = pixel;
+                        hits.push(hit);
+                        rays += r as u64;
+                    }
+                } else {
+                    for ((&(k, ..), sample), &first) in
+                        traced.iter().zip(cameras.drain(..)).zip(&*first_hits)
+                    {
+                        let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
+                        gpixels[k] = pixel;
+                        hits.push(hit);
+                        rays += r as u64;
+                    }
                 }
                 let t1 = Instant::now();
-                for ((l, hit), (x, y)) in lpixels.iter_mut().zip(hits.iter()).zip(pixels()) {
-                    let (sample, r) = lighting::lighting(tracer, x, y, hit, index, spp);
-                    *l = sample;
-                    rays += r;
+                if P::EVERY_PIXEL {
+                    let index = plan.sample(start).unwrap_or(0);
+                    for ((l, hit), (x, y)) in lpixels.iter_mut().zip(hits.iter()).zip(pixels()) {
+                        let (sample, r) =
+                            lighting::lighting::<false>(tracer, x, y, hit, index, spp);
+                        *l = sample;
+                        rays += r;
+                    }
+                } else {
+                    let along = plan.along_first_bounce();
+                    for (&(k, x, y, index), hit) in traced.iter().zip(hits.iter()) {
+                        lpixels[k] = if plan.keep(start + k, &gpixels[k]) {
+                            let (sample, r) = if along {
+                                lighting::lighting::<true>(tracer, x, y, hit, index, spp)
+                            } else {
+                                lighting::lighting::<false>(tracer, x, y, hit, index, spp)
+                            };
+                            rays += r;
+                            sample
+                        } else {
+                            LightSample::default()
+                        };
+                    }
                 }
                 let t2 = Instant::now();
                 (rays, (t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64())

@@ -1,0 +1,405 @@
+//! Seed 000's adaptive sampling (Schalk 2018, section 3.1, Algorithm 1): each frame is one
+//! *iteration* that gives every pixel at most one new sample (`spp` samples with more per
+//! frame), spent where the luminance-scaled deviation of the pixel's samples is large.
+//!
+//! Per pixel, the accumulation pass already keeps Welford statistics of the samples (Eqs. 9
+//! and 10: [`PixelStats`], per channel). From them:
+//! - Eq. 11, the pixel variance: the mean over the three channels of `M2 / (n - 1)`;
+//! - Eq. 12, `V = (sqrt(Var) + eps) / (L + eps)` with `L` the luminance of the pixel's mean
+//!   and `eps` = [`EPSILON`] (the thesis's pseudocode puts `eps` inside the square root, its
+//!   Eq. 12 outside; this follows Eq. 12).
+//!
+//! The schedule, from the last reset (any change of camera or settings) on: iterations
+//! `0 .. min_spp` sample every pixel. From iteration `min_spp` a threshold `tau` starts at 1
+//! and falls by `1 / (max_spp - min_spp)` per iteration; a pixel is sampled while it has fewer
+//! than `min_spp` samples or `V >= tau` (the thesis's pseudocode decrements `tau`; its printed
+//! `tau := 1 / (max - min)` is read as `tau -= ...`). At iteration `max_spp` each pixel's
+//! probability is fixed at `P = spp / max_spp` (in `[min_spp / max_spp, 1]`), and from then on
+//! a pixel is sampled when a uniform random number (hashed from the seed, the pixel and the
+//! iteration, so independent of threads) is below `P`, until the next reset. With
+//! `min_spp > 0` every pixel keeps a positive probability, so the image still converges.
+//!
+//! With forward reprojection on as well, the pipeline runs the thesis's combination
+//! (Algorithm 2): reprojected pixels bring their samples, statistics and probability; after a
+//! camera move the schedule restarts, and pixels that already have a probability take no
+//! samples until iteration `max_spp`, when every pixel's probability is set again from its
+//! sample count. The thesis's known flaw follows: a reprojected pixel that had no probability
+//! yet can go past `max_spp` samples (and so gets a probability above 1). [`AdaptiveConfig::cap`]
+//! is the fix: no schedule samples for a pixel that has `max_spp` already, and pixels keep a
+//! probability they brought.
+//!
+//! Passes: this module has no pass of its own. Its decision ([`Schedule::wants`]) is read by
+//! the primary and lighting passes (which pixels are traced), and the accumulation pass fixes
+//! the probabilities ([`Adaptive::fix_probabilities`]). Its per-pixel state is `P`.
+
+use glam::Vec3;
+use pathlight_core::color::luminance;
+use pathlight_core::rng::{hash, unit_f32};
+use serde::{Deserialize, Serialize};
+
+use super::accumulation::PixelStats;
+use crate::config::ConfigError;
+
+/// `eps` of Eq. 12, in units of radiance: a pixel without variance or luminance (black after a
+/// few samples) has `V = 1`, so it keeps being sampled during the schedule.
+pub const EPSILON: f32 = 1e-3;
+
+/// Longest schedule (`max_spp`) accepted.
+pub const MAX_SCHEDULE: u32 = 1 << 16;
+
+/// Marks a pixel whose probability is not fixed yet.
+pub const NO_PROBABILITY: f32 = -1.0;
+
+/// Settings of adaptive sampling (`[frame.adaptive]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AdaptiveConfig {
+    pub enabled: bool,
+    /// Samples every pixel gets before the threshold applies (the thesis recommends 4).
+    pub min_spp: u32,
+    /// The iteration at which probabilities are fixed (the thesis recommends 32).
+    pub max_spp: u32,
+    /// How the deviation of a pixel's samples is scaled into `V`.
+    pub measure: Measure,
+    /// The fix of the combination's flaw (Algorithm 2): during the schedule a pixel with
+    /// `max_spp` samples already takes no more, and a pixel keeps the probability it brought
+    /// from the previous view instead of one recomputed from an inflated sample count.
+    pub cap: bool,
+}
+
+impl Default for AdaptiveConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            min_spp: 4,
+            max_spp: 32,
+            measure: Measure::Luminance,
+            cap: false,
+        }
+    }
+}
+
+/// The measure `V` the threshold is compared with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Measure {
+    /// Eq. 12: the standard deviation of a sample over the luminance of the pixel's mean.
+    #[default]
+    Luminance,
+}
+
+impl AdaptiveConfig {
+    /// Checks the ranges: `1 <= min_spp <= max_spp <= 65536`.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.min_spp == 0 {
+            return Err(ConfigError::new(
+                "frame.adaptive.min_spp",
+                self.min_spp,
+                "at least 1 (every pixel must keep converging)",
+            ));
+        }
+        if self.max_spp < self.min_spp || self.max_spp > MAX_SCHEDULE {
+            return Err(ConfigError::new(
+                "frame.adaptive.max_spp",
+                self.max_spp,
+                format!("between min_spp ({}) and {MAX_SCHEDULE}", self.min_spp),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Eq. 11: the variance of one sample, averaged over the three channels (0 below two
+/// samples).
+#[inline]
+pub fn pixel_variance(stats: &PixelStats) -> f32 {
+    let v: Vec3 = stats.variance();
+    (v.x + v.y + v.z) * (1.0 / 3.0)
+}
+
+/// Eq. 12: `V = (sqrt(Var) + eps) / (L + eps)`.
+#[inline]
+pub fn deviation(stats: &PixelStats, measure: Measure) -> f32 {
+    match measure {
+        Measure::Luminance => {
+            let l = luminance(stats.mean()).max(0.0);
+            (pixel_variance(stats).max(0.0).sqrt() + EPSILON) / (l + EPSILON)
+        }
+    }
+}
+
+/// The threshold `tau` at iteration `iteration` (1 until `min_spp`, then falling by
+/// `1 / (max_spp - min_spp)` per iteration; only read before `max_spp`).
+#[inline]
+pub fn threshold(iteration: u32, min_spp: u32, max_spp: u32) -> f32 {
+    if iteration <= min_spp || max_spp <= min_spp {
+        return 1.0;
+    }
+    1.0 - (iteration - min_spp) as f32 / (max_spp - min_spp) as f32
+}
+
+/// The per-pixel state: each pixel's fixed probability ([`NO_PROBABILITY`] before it is
+/// fixed).
+#[derive(Debug, Clone, Default)]
+pub struct Adaptive {
+    pub probability: Vec<f32>,
+}
+
+/// One iteration's decisions: which pixels are sampled.
+#[derive(Debug, Clone, Copy)]
+pub struct Schedule {
+    pub iteration: u32,
+    pub tau: f32,
+    pub min_spp: u32,
+    pub max_spp: u32,
+    pub measure: Measure,
+    /// Algorithm 2: pixels with a probability wait for the probability phase.
+    pub combination: bool,
+    pub cap: bool,
+    /// Seeds the probability phase's random numbers (the epoch's seed).
+    pub seed: u64,
+}
+
+impl Schedule {
+    pub fn new(config: &AdaptiveConfig, iteration: u32, combination: bool, seed: u64) -> Self {
+        Self {
+            iteration,
+            tau: threshold(iteration, config.min_spp, config.max_spp),
+            min_spp: config.min_spp,
+            max_spp: config.max_spp,
+            measure: config.measure,
+            combination,
+            cap: config.cap,
+            seed,
+        }
+    }
+
+    /// Whether pixel `pixel`, with statistics `stats` and probability `probability`, takes a
+    /// sample in this iteration.
+    #[inline]
+    pub fn wants(&self, pixel: usize, stats: &PixelStats, probability: f32) -> bool {
+        if self.iteration >= self.max_spp {
+            if probability == NO_PROBABILITY {
+                // Only when adaptive sampling was switched on past the schedule's end.
+                return true;
+            }
+            let u = unit_f32(hash(&[self.seed, pixel as u64, self.iteration as u64]) as u32);
+            return u < probability;
+        }
+        if self.combination && probability != NO_PROBABILITY {
+            return false;
+        }
+        if self.cap && stats.n >= self.max_spp {
+            return false;
+        }
+        stats.n < self.min_spp || deviation(stats, self.measure) >= self.tau
+    }
+}
+
+impl Adaptive {
+    /// Sizes the state for `pixels` pixels, every probability unfixed.
+    pub fn reset(&mut self, pixels: usize) {
+        self.probability.clear();
+        self.probability.resize(pixels, NO_PROBABILITY);
+    }
+
+    /// The end of iteration `max_spp - 1`: every pixel's probability becomes
+    /// `spp / max_spp` (Algorithm 1 and 2). With `cap`, a pixel keeps a probability it has
+    /// and counts at most `max_spp` samples.
+    pub fn fix_probabilities(&mut self, history: &[PixelStats], max_spp: u32, cap: bool) {
+        use rayon::prelude::*;
+        self.probability
+            .par_iter_mut()
+            .zip(history.par_iter())
+            .for_each(|(p, h)| {
+                if cap && *p != NO_PROBABILITY {
+                    return;
+                }
+                let n = if cap { h.n.min(max_spp) } else { h.n };
+                *p = n as f32 / max_spp as f32;
+            });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The statistics of `samples` (grey values), one at a time (Eqs. 9 and 10).
+    fn stats_of(samples: &[Vec3]) -> PixelStats {
+        let mut s = PixelStats::default();
+        for &v in samples {
+            s.add(v, Vec3::ZERO);
+        }
+        s
+    }
+
+    #[test]
+    fn welford_and_eq_12_match_sequences_of_known_mean_and_variance() {
+        // 1, 2, ..., 10 in every channel: mean 5.5, sample variance 55/6 (n - 1).
+        let seq: Vec<Vec3> = (1..=10).map(|i| Vec3::splat(i as f32)).collect();
+        let s = stats_of(&seq);
+        assert!((s.mean().x - 5.5).abs() < 1e-6);
+        assert!((pixel_variance(&s) - 55.0 / 6.0).abs() < 1e-5);
+        let v = deviation(&s, Measure::Luminance);
+        let expected = ((55.0f32 / 6.0).sqrt() + EPSILON) / (5.5 + EPSILON);
+        assert!((v - expected).abs() < 1e-6, "{v} {expected}");
+
+        // Channels of different variance: Eq. 11 averages them. Red alternates 0 and 2
+        // (variance n/(n-1) with mean 1), green is constant 1, blue alternates 0 and 4
+        // (variance 4 n/(n-1)).
+        let n = 8;
+        let seq: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let odd = (i % 2) as f32;
+                Vec3::new(2.0 * odd, 1.0, 4.0 * odd)
+            })
+            .collect();
+        let s = stats_of(&seq);
+        let k = n as f32 / (n - 1) as f32;
+        assert!((pixel_variance(&s) - (k + 0.0 + 4.0 * k) / 3.0).abs() < 1e-5);
+        // Luminance of the mean (1, 1, 2).
+        let l = luminance(Vec3::new(1.0, 1.0, 2.0));
+        let expected = (((5.0 * k) / 3.0).sqrt() + EPSILON) / (l + EPSILON);
+        assert!((deviation(&s, Measure::Luminance) - expected).abs() < 1e-5);
+
+        // A large offset does not break the running statistics (Welford, not sum of squares).
+        let seq: Vec<Vec3> = (0..1000)
+            .map(|i| Vec3::splat(1e4 + (i % 2) as f32))
+            .collect();
+        let s = stats_of(&seq);
+        assert!((pixel_variance(&s) - 0.25 * 1000.0 / 999.0).abs() < 1e-2);
+
+        // One sample has no variance; a black pixel has V = 1.
+        assert_eq!(pixel_variance(&stats_of(&[Vec3::ONE])), 0.0);
+        assert_eq!(
+            deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Luminance),
+            1.0
+        );
+    }
+
+    #[test]
+    fn the_threshold_falls_from_one_between_min_and_max() {
+        let (min, max) = (4, 32);
+        for i in 0..=min {
+            assert_eq!(threshold(i, min, max), 1.0);
+        }
+        assert!((threshold(min + 1, min, max) - (1.0 - 1.0 / 28.0)).abs() < 1e-6);
+        assert!((threshold(max - 1, min, max) - 1.0 / 28.0).abs() < 1e-6);
+        // Strictly falling in between.
+        for i in min..max - 1 {
+            assert!(threshold(i + 1, min, max) < threshold(i, min, max));
+        }
+        assert_eq!(threshold(10, 8, 8), 1.0);
+    }
+
+    /// Runs the schedule on a synthetic map of fixed V values: pixel `i` has `V = vs[i]`
+    /// whatever its samples (their statistics are faked to give it). Returns each pixel's
+    /// sample count after `iterations` iterations and the probabilities.
+    fn run(vs: &[f32], config: &AdaptiveConfig, iterations: u32) -> (Vec<u32>, Vec<f32>) {
+        // A pixel of mean luminance 1 and standard deviation s has V = (s + eps) / (1 + eps).
+        let stats_for = |v: f32, n: u32| {
+            let s = v * (1.0 + EPSILON) - EPSILON;
+            let mut p = PixelStats {
+                n,
+                ..PixelStats::default()
+            };
+            p.direct.mean = Vec3::ONE;
+            p.radiance_m2 = Vec3::splat(s * s * (n.max(2) - 1) as f32);
+            p
+        };
+        let mut counts = vec![0u32; vs.len()];
+        let mut adaptive = Adaptive::default();
+        adaptive.reset(vs.len());
+        for it in 0..iterations {
+            let schedule = Schedule::new(config, it, false, 99);
+            let chosen: Vec<bool> = vs
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| schedule.wants(i, &stats_for(v, counts[i]), adaptive.probability[i]))
+                .collect();
+            for (c, chose) in counts.iter_mut().zip(chosen) {
+                *c += u32::from(chose);
+            }
+            if it + 1 == config.max_spp {
+                let history: Vec<PixelStats> = vs
+                    .iter()
+                    .zip(&counts)
+                    .map(|(&v, &n)| stats_for(v, n))
+                    .collect();
+                adaptive.fix_probabilities(&history, config.max_spp, config.cap);
+            }
+        }
+        (counts, adaptive.probability)
+    }
+
+    #[test]
+    fn the_schedule_gives_samples_by_v_and_fixes_probabilities() {
+        let config = AdaptiveConfig {
+            enabled: true,
+            min_spp: 4,
+            max_spp: 32,
+            ..AdaptiveConfig::default()
+        };
+        // V = 0 (never above tau), 1 (always), 0.5, and 2.
+        let vs = [0.0, 1.0, 0.5, 2.0, 0.25];
+        let (counts, probability) = run(&vs, &config, 32);
+        // Iteration i >= 4 samples a pixel when V >= 1 - (i - 4) / 28, i.e. i >= 4 + 28 (1 - V).
+        let expected = |v: f32| 4 + (4..32).filter(|&i| v >= threshold(i, 4, 32)).count() as u32;
+        assert_eq!(counts[0], 4);
+        assert_eq!(counts[1], 32);
+        assert_eq!(counts[3], 32);
+        assert_eq!(counts[2], expected(0.5));
+        assert!((17..=19).contains(&counts[2]), "{}", counts[2]);
+        assert_eq!(counts[4], expected(0.25));
+        for (c, p) in counts.iter().zip(&probability) {
+            assert_eq!(*p, *c as f32 / 32.0);
+        }
+        // Probabilities span [min / max, 1].
+        assert_eq!(probability[0], 4.0 / 32.0);
+        assert_eq!(probability[1], 1.0);
+
+        // After the schedule each pixel is sampled with its probability: over 4000 more
+        // iterations, counts within 4 standard deviations of P N.
+        let extra = 4000;
+        let (more, _) = run(&vs, &config, 32 + extra);
+        for (i, p) in probability.iter().enumerate() {
+            let got = (more[i] - counts[i]) as f64;
+            let (p, n) = (*p as f64, extra as f64);
+            let sd = (n * p * (1.0 - p)).sqrt();
+            assert!(
+                (got - n * p).abs() <= 4.0 * sd + 1e-9,
+                "pixel {i}: {got} of {n} at P {p}"
+            );
+        }
+    }
+
+    #[test]
+    fn with_min_spp_every_pixel_keeps_converging() {
+        // Whatever V, every pixel's probability is at least min / max, so the sample count of
+        // each grows without bound (here: past 100 over 2000 iterations for P = 1/8).
+        let config = AdaptiveConfig {
+            enabled: true,
+            min_spp: 2,
+            max_spp: 16,
+            ..AdaptiveConfig::default()
+        };
+        let vs = [0.0, 0.01, 1e-9, 3.0];
+        let (counts, probability) = run(&vs, &config, 2000);
+        assert!(probability.iter().all(|&p| p >= 2.0 / 16.0));
+        assert!(counts.iter().all(|&c| c > 100), "{counts:?}");
+    }
+
+    #[test]
+    fn bad_settings_are_refused() {
+        for (min, max) in [(0, 32), (8, 4), (4, 1 << 20)] {
+            let c = AdaptiveConfig {
+                min_spp: min,
+                max_spp: max,
+                ..AdaptiveConfig::default()
+            };
+            assert!(c.validate().is_err(), "{min} {max}");
+        }
+        assert!(AdaptiveConfig::default().validate().is_ok());
+    }
+}

@@ -1,0 +1,894 @@
+//! Seed 000's forward reprojection (Schalk 2018, section 3.2): when the camera moves, each
+//! pixel's accumulated samples move with the surface point they saw into the new view, where
+//! they are still valid, instead of being thrown away.
+//!
+//! # State
+//! Each pixel keeps `samples` (1 or 4) *states* ([`Slot`]): the statistics of its samples
+//! (count, mean and M2 of direct and indirect light, as the history keeps them) and what
+//! Eq. 15 needs, taken from the state's first sample: the first hit point (for the sky, the
+//! direction through the pixel's centre), the first outgoing direction `L`, the Beckmann
+//! alpha (glTF roughness squared), the shading normal `N`, the base colour `A`, the reflectance
+//! at normal incidence, and `I`, the radiance arriving along `L` averaged over the state's
+//! samples (the thesis's approximation: one state per pixel, not one per sample). With 4
+//! states, each covers a quarter of the pixel: a sample goes to the state of the quadrant its
+//! first hit projects into (the sky always to the first), so the 4 states of a pixel move
+//! apart when the view changes, as its samples would. The pixel's history is the merge of
+//! its states. The thesis's stored `f_r(V_{t-1}, L, N)` is recomputed instead (it needs only
+//! the previous camera's position).
+//!
+//! # Passes
+//! ```text
+//! reproject   states, previous camera, camera, scene -> states in the new view, history,
+//!             probabilities (adaptive), fates
+//! accumulate  states, G-buffer, lighting             -> states, history (aliasing test on
+//!             the frame after a move)
+//! ```
+//! `reproject` runs at the first frame after a camera move (any other change starts afresh).
+//! Each state is projected with the new camera and kept only if it passes, in this order:
+//! 1. the screen bounds;
+//! 2. specular exclusion: a specular lobe with alpha < 0.01, or any transmission (glass,
+//!    thin or refracting). A Lambertian surface (no specular layer) is never specular,
+//!    whatever its roughness;
+//! 3. (beyond the thesis) *mixed* states: a state whose samples saw more than one surface
+//!    (another material, or a point off its tangent plane, the aliasing test's criterion)
+//!    straddles an edge; its colour mixes both sides in the proportions of its old
+//!    footprint, which the new footprint does not share. Without this, every moved edge
+//!    (a light's rim above all) carries a wrong mix that further samples never correct;
+//! 4. the view-dependency error of Eq. 15, `|f_r(V_t, L, N) - f_r(V_{t-1}, L, N)| A I`, at
+//!    most `max_error` (its largest channel; `f_r` is Walter et al.'s reflection term with
+//!    the Beckmann distribution, Eq. 13, with Schlick's Fresnel term from the material's
+//!    reflectance at normal incidence and Smith's separable shadowing-masking with Walter's
+//!    rational approximation; `V` points from the surface to the camera position). Under pure
+//!    rotation `V_t == V_{t-1}`, so the error is exactly 0;
+//! 5. occlusion: a ray from the new camera towards the stored point must reach it, short by
+//!    `occlusion_tolerance` of the distance (the sky: a ray in its direction must escape).
+//!    Cut-out (alpha) surfaces count as opaque here;
+//! 6. (in the accumulation pass of that frame, where the new G-buffer is known) the aliasing
+//!    depth test: the frame's camera ray through the target pixel must hit the stored
+//!    point's surface: the same material, and a distance to the stored point's tangent plane
+//!    of at most `depth_tolerance` times its depth (the thesis compares the distance between
+//!    the points with a maximum distance it does not give; the plane distance accepts a
+//!    surface seen at a grazing angle, where the pixel's samples lie far apart on one plane;
+//!    the material separates coplanar surfaces such as a light in its ceiling). Sky states
+//!    need sky there, and surface states a surface.
+//!
+//! Beyond the thesis, the same agreement test runs at every later frame on the state of the
+//! quadrant each new sample falls in: a carried state that a new sample disagrees with is
+//! dropped (its footprint's mix of surfaces was not this pixel's) and the state restarts
+//! from the new samples. So a pixel on an edge converges to the right mix once a sample has
+//! seen the other side, instead of keeping the wrong one for the rest of the epoch.
+//!
+//! A state's point is *snapped* to where the camera ray through the centre of its pixel (or
+//! quadrant) meets the point's tangent plane, when it starts and each time it is carried.
+//! The first hit of a jittered sample lies anywhere in the pixel; projected as it is, the
+//! states of neighbouring pixels collide and leave holes even under a small rotation (on
+//! the Cornell box at 320x180, 5-degree steps: 10.7k of 57.6k states lost to collisions
+//! unsnapped, 1.9k snapped, the rest from the change of perspective).
+//!
+//! Two states that land on one target (a state per pixel, or per quadrant with 4): the one
+//! nearest the new camera wins (the thesis's related work, Adelson and Hodges), ties to the
+//! lower source index, so the result does not depend on the threads. Pixels (or quadrants)
+//! that receive nothing are holes: they start afresh with the frame's new samples. A frame
+//! after a move also takes a new sample in every pixel (without adaptive sampling), so
+//! reprojected pixels keep refining.
+//!
+//! Sample indices continue from a pixel's sample count, in the new epoch's random sequence.
+
+use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
+
+use glam::{Vec2, Vec3};
+use pathlight_accel::Ray;
+use pathlight_scene::Material;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::bsdf::fresnel::{f0_from_ior, schlick_weight};
+use crate::bsdf::microfacet::Ndf;
+use crate::bsdf::{Microfacet, DELTA_ALPHA};
+use crate::camera::Camera;
+use crate::config::ConfigError;
+use crate::path::Bounce;
+use crate::world::World;
+
+use super::accumulation::PixelStats;
+use super::adaptive::NO_PROBABILITY;
+use super::gbuffer::GPixel;
+use super::lighting::LightSample;
+use super::ping_pong::PingPong;
+
+/// Settings of forward reprojection (`[frame.reprojection]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReprojectionConfig {
+    pub enabled: bool,
+    /// States per pixel: 1, or 4 (one per quarter of the pixel).
+    pub samples: u32,
+    /// Largest view-dependency error (Eq. 15) of a reprojected state, in units of radiance
+    /// (the thesis: 1/256).
+    pub max_error: f32,
+    /// The occlusion ray stops this fraction of the distance short of the stored point.
+    pub occlusion_tolerance: f32,
+    /// The aliasing depth test: largest distance of the new hit from the stored point's
+    /// tangent plane, as a fraction of the new hit's depth.
+    pub depth_tolerance: f32,
+}
+
+impl Default for ReprojectionConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            samples: 1,
+            max_error: 1.0 / 256.0,
+            occlusion_tolerance: 1e-3,
+            depth_tolerance: 0.02,
+        }
+    }
+}
+
+impl ReprojectionConfig {
+    /// Checks: 1 or 4 states, `max_error >= 0` (infinite switches the test off), tolerances
+    /// in (0, 1).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !matches!(self.samples, 1 | 4) {
+            return Err(ConfigError::new(
+                "frame.reprojection.samples",
+                self.samples,
+                "1 or 4",
+            ));
+        }
+        if self.max_error.is_nan() || self.max_error < 0.0 {
+            return Err(ConfigError::new(
+                "frame.reprojection.max_error",
+                self.max_error,
+                ">= 0",
+            ));
+        }
+        for (name, v) in [
+            (
+                "frame.reprojection.occlusion_tolerance",
+                self.occlusion_tolerance,
+            ),
+            ("frame.reprojection.depth_tolerance", self.depth_tolerance),
+        ] {
+            if !(v > 0.0 && v < 1.0) {
+                return Err(ConfigError::new(name, v, "between 0 and 1"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One reprojection state: a share of a pixel's samples and what the checks need.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Slot {
+    /// The samples (empty: `stats.n == 0`).
+    pub stats: PixelStats,
+    /// World position of the first sample's first hit; for the sky, the unit direction.
+    pub point: Vec3,
+    /// Unit shading normal there, facing the camera that saw it.
+    pub normal: Vec3,
+    /// `L`: the unit direction the first sample left the first hit in (zero where it ended).
+    pub direction: Vec3,
+    /// `A`: the base colour at the first hit.
+    pub albedo: Vec3,
+    /// `I`: the radiance arriving along `L`, averaged over the slot's samples.
+    pub irradiance: Vec3,
+    /// Beckmann alpha (glTF roughness squared).
+    pub alpha: f32,
+    /// Specular reflectance at normal incidence (the dielectric layer's F0 blended to 1 by
+    /// metallic).
+    pub f0: f32,
+    /// Specular reflectance at grazing incidence (the dielectric layer's `specular` weight
+    /// blended to 1 by metallic; 0: no specular lobe, a Lambertian surface).
+    pub f90: f32,
+    /// The state saw the environment (`point` is a direction).
+    pub sky: bool,
+    /// Never reprojected: a specular lobe with alpha < 0.01, or transmitting.
+    pub specular: bool,
+    /// The material at the first hit ([`NO_MATERIAL`](super::gbuffer::NO_MATERIAL): sky).
+    pub material: u32,
+    /// Never reprojected: its samples saw more than one surface (another material, or a
+    /// point off this one's tangent plane): a mix that belongs to its old footprint.
+    pub mixed: bool,
+    /// Its samples came from another view (dropped when a new sample disagrees).
+    pub carried: bool,
+}
+
+/// Alpha below which a surface counts as specular (the thesis's 0.01).
+pub const SPECULAR_ALPHA: f32 = 0.01;
+
+impl Slot {
+    /// A state started by a frame's first sample: G-buffer pixel `g`, its first bounce and
+    /// its material (none for the sky, whose direction the caller sets).
+    pub fn start(g: &GPixel, bounce: &Bounce, material: Option<&Material>) -> Self {
+        let Some(m) = material.filter(|_| !g.is_sky()) else {
+            return Slot {
+                sky: true,
+                material: g.material,
+                ..Slot::default()
+            };
+        };
+        let alpha = g.roughness.clamp(0.0, 1.0).powi(2);
+        // As the BSDF's dielectric layer (`bsdf` module docs), reduced to one channel.
+        let weight = m.specular.clamp(0.0, 1.0);
+        let dielectric =
+            (f0_from_ior(m.ior) * m.specular_color.max_element().max(0.0)).min(1.0) * weight;
+        let metallic = g.metallic.clamp(0.0, 1.0);
+        let f90 = weight + (1.0 - weight) * metallic;
+        Slot {
+            stats: PixelStats::default(),
+            point: g.position,
+            normal: g.normal,
+            direction: bounce.direction,
+            albedo: g.albedo,
+            irradiance: Vec3::ZERO,
+            alpha,
+            f0: (dielectric + (1.0 - dielectric) * metallic).clamp(0.0, 1.0),
+            f90,
+            sky: false,
+            specular: (f90 > 0.0 && alpha < SPECULAR_ALPHA) || m.transmission > 0.0,
+            material: g.material,
+            mixed: false,
+            carried: false,
+        }
+    }
+
+    /// Whether a sample with first hit `g` saw this state's surface (`tolerance`: as the
+    /// aliasing test's).
+    #[inline]
+    fn agrees(&self, g: &GPixel, tolerance: f32) -> bool {
+        g.material == self.material && same_surface(self, g, tolerance)
+    }
+
+    /// Adds a frame's samples (`l.stats`) and the radiance along their first bounce.
+    #[inline]
+    fn add(&mut self, l: &LightSample) {
+        let n = self.stats.n + l.stats.n;
+        let w = l.stats.n as f32 / n as f32;
+        self.irradiance += (l.bounce.radiance - self.irradiance) * w;
+        self.stats.merge(&l.stats);
+    }
+}
+
+/// Eq. 13: Walter et al.'s microfacet reflection term `F G D / (4 |i.n| |o.n|)` with the
+/// Beckmann distribution of alpha `alpha`, Schlick's Fresnel term from `f0` to `f90` and
+/// Smith's separable shadowing-masking (Walter's rational approximation). `i`, `o` and `n`
+/// are unit vectors; 0 unless both directions are on the normal's side (the thesis's
+/// `sign(i.n)` flips `h` for `i` below the surface, where reflection is 0 anyway).
+pub fn reflection(i: Vec3, o: Vec3, n: Vec3, alpha: f32, f0: f32, f90: f32) -> f32 {
+    if f90 <= 0.0 {
+        return 0.0;
+    }
+    let (cos_i, cos_o) = (i.dot(n), o.dot(n));
+    if !(cos_i > 0.0 && cos_o > 0.0) {
+        return 0.0;
+    }
+    let h = (i + o).normalize_or_zero();
+    let cos_h = h.dot(n);
+    if cos_h <= 0.0 {
+        return 0.0;
+    }
+    // The distribution and Lambda depend only on angles to the normal: a local vector with
+    // that cosine stands for each direction.
+    let local = |c: f32| Vec3::new((1.0 - c * c).max(0.0).sqrt(), 0.0, c.min(1.0));
+    let ndf = Ndf::new(Microfacet::Beckmann, alpha.max(DELTA_ALPHA));
+    let d = ndf.d(local(cos_h));
+    let g = 1.0 / ((1.0 + ndf.lambda(local(cos_i))) * (1.0 + ndf.lambda(local(cos_o))));
+    let f = f0 + (f90 - f0) * schlick_weight(i.dot(h));
+    f * g * d / (4.0 * cos_i * cos_o)
+}
+
+/// Eq. 15: the view-dependency error of moving `slot` from a camera at `from` to one at `to`,
+/// the largest channel of `|f_r(V_t, L, N) - f_r(V_{t-1}, L, N)| A I` (0 for the sky).
+pub fn view_error(slot: &Slot, from: Vec3, to: Vec3) -> f32 {
+    if slot.sky {
+        return 0.0;
+    }
+    let view = |eye: Vec3| (eye - slot.point).normalize_or_zero();
+    let f = |v: Vec3| {
+        reflection(
+            v,
+            slot.direction,
+            slot.normal,
+            slot.alpha,
+            slot.f0,
+            slot.f90,
+        )
+    };
+    let df = (f(view(to)) - f(view(from))).abs();
+    (slot.albedo * slot.irradiance * df).max_element()
+}
+
+/// The aliasing depth test: whether the new camera ray through the pixel (G-buffer pixel `g`)
+/// sees the surface of `slot`'s stored point.
+#[inline]
+pub fn same_surface(slot: &Slot, g: &GPixel, tolerance: f32) -> bool {
+    if slot.sky || g.is_sky() {
+        return slot.sky && g.is_sky();
+    }
+    (g.position - slot.point).dot(slot.normal).abs() <= tolerance * g.depth
+}
+
+/// What happened to a pixel's states at the last camera move (the `rejection` display mode):
+/// the best outcome among the states that landed on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Fate {
+    /// Nothing landed here: newly seen (or no move yet).
+    New = 0,
+    /// The state that landed here was hidden from the new camera.
+    Occluded = 1,
+    /// Its view-dependency error was too large.
+    ViewError = 2,
+    /// It was on a specular surface.
+    Specular = 3,
+    /// Its samples saw more than one surface (an edge).
+    Mixed = 4,
+    /// The new ray through the pixel saw another surface (aliasing depth test).
+    Aliasing = 5,
+    /// At least one state kept its history here.
+    Kept = 6,
+}
+
+impl Fate {
+    pub const ALL: [Fate; 7] = [
+        Fate::New,
+        Fate::Occluded,
+        Fate::ViewError,
+        Fate::Specular,
+        Fate::Mixed,
+        Fate::Aliasing,
+        Fate::Kept,
+    ];
+
+    fn from_u8(v: u8) -> Fate {
+        Fate::ALL[(v as usize).min(Fate::ALL.len() - 1)]
+    }
+
+    /// Its colour in the `rejection` display mode.
+    pub fn colour(self) -> [u8; 3] {
+        match self {
+            Fate::New => [0, 0, 0],
+            Fate::Occluded => [230, 40, 40],
+            Fate::ViewError => [240, 200, 30],
+            Fate::Specular => [50, 110, 240],
+            Fate::Mixed => [240, 130, 30],
+            Fate::Aliasing => [220, 60, 220],
+            Fate::Kept => [60, 200, 80],
+        }
+    }
+}
+
+/// Counts of one reprojection pass (and the aliasing test of the frame that followed).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ReprojectionReport {
+    /// States that held samples.
+    pub states: u64,
+    /// States kept in the new view.
+    pub kept: u64,
+    pub out_of_view: u64,
+    pub specular: u64,
+    /// States whose samples saw more than one surface.
+    pub mixed: u64,
+    pub view_error: u64,
+    pub occluded: u64,
+    /// States that lost to a nearer one on the same target.
+    pub collisions: u64,
+    /// States that failed the aliasing depth test.
+    pub aliasing: u64,
+}
+
+impl ReprojectionReport {
+    fn add(mut self, o: Self) -> Self {
+        self.states += o.states;
+        self.kept += o.kept;
+        self.out_of_view += o.out_of_view;
+        self.specular += o.specular;
+        self.mixed += o.mixed;
+        self.view_error += o.view_error;
+        self.occluded += o.occluded;
+        self.collisions += o.collisions;
+        self.aliasing += o.aliasing;
+        self
+    }
+}
+
+/// Forward reprojection's state and buffers.
+#[derive(Debug, Default)]
+pub struct Reprojection {
+    /// `samples` states per pixel, row-major: `current` this view's, `previous` scratch.
+    pub slots: PingPong<Slot>,
+    /// States per pixel.
+    pub samples: usize,
+    /// Per pixel, the [`Fate`] at the last move.
+    pub fates: Vec<u8>,
+    /// Per pixel, how many states kept their history at the last move.
+    pub kept: Vec<u8>,
+    /// Per target state: the best claim (depth bits, source index) of this move.
+    claims: Vec<AtomicU64>,
+    /// Per target pixel: the best rejection among the states that landed there.
+    marks: Vec<AtomicU8>,
+    /// Probabilities before the move (adaptive sampling's, carried by the states).
+    probability: Vec<f32>,
+    /// The states hold this view's samples (false after the technique was off).
+    pub valid: bool,
+}
+
+const NO_CLAIM: u64 = u64::MAX;
+
+/// Pixels per parallel task of the passes here.
+const CHUNK: usize = 256;
+
+/// The quarter of its pixel (0 to 3: left/right, then top/bottom) of film position `f`.
+#[inline]
+fn quadrant(f: Vec2) -> usize {
+    usize::from(f.x.fract() >= 0.5) + 2 * usize::from(f.y.fract() >= 0.5)
+}
+
+/// The history of a pixel: the merge of its states.
+#[inline]
+fn merged(slots: &[Slot]) -> PixelStats {
+    let mut h = PixelStats::default();
+    for s in slots {
+        h.merge(&s.stats);
+    }
+    h
+}
+
+impl Reprojection {
+    /// Empties every state, for `pixels` pixels of `samples` states.
+    pub fn reset(&mut self, pixels: usize, samples: usize) {
+        self.samples = samples;
+        let n = pixels * samples;
+        for buffer in [&mut self.slots.current, &mut self.slots.previous] {
+            buffer.clear();
+            buffer.resize(n, Slot::default());
+        }
+        self.claims.resize_with(n, || AtomicU64::new(NO_CLAIM));
+        self.marks.resize_with(pixels, || AtomicU8::new(0));
+        self.fates.clear();
+        self.fates.resize(pixels, Fate::New as u8);
+        self.kept.clear();
+        self.kept.resize(pixels, 0);
+        self.valid = true;
+    }
+
+    /// Bytes held per pixel.
+    pub fn bytes(&self) -> usize {
+        self.slots.bytes()
+            + self.claims.capacity() * 8
+            + self.marks.capacity()
+            + self.fates.capacity()
+            + self.kept.capacity()
+            + self.probability.capacity() * 4
+    }
+
+    /// The reprojection pass: moves every state seen by `from` into the view of `to` (both for
+    /// images of `width` x `height`, the size the states were made for) and rebuilds each
+    /// pixel's `history` from its states; carries adaptive sampling's `probability` (a pixel
+    /// takes the largest its states bring, [`NO_PROBABILITY`] when none brings one).
+    #[allow(clippy::too_many_arguments)]
+    pub fn reproject(
+        &mut self,
+        world: &World,
+        from: &Camera,
+        to: &Camera,
+        width: u32,
+        config: &ReprojectionConfig,
+        history: &mut [PixelStats],
+        probability: &mut [f32],
+    ) -> ReprojectionReport {
+        let k = self.samples;
+        let w = width as usize;
+        let h = history.len() / w.max(1);
+        let (eye_from, eye_to) = (from.position(), to.position());
+        let (claims, marks) = (&self.claims, &self.marks);
+        let mark = |t: usize, fate: Fate| {
+            marks[t].fetch_max(fate as u8, Ordering::Relaxed);
+        };
+        // Each state: its target, the checks, and a claim on the target (nearest wins).
+        let mut report = self
+            .slots
+            .current
+            .par_iter()
+            .enumerate()
+            .with_min_len(CHUNK)
+            .map(|(j, s)| {
+                let mut r = ReprojectionReport::default();
+                if s.stats.n == 0 {
+                    return r;
+                }
+                r.states = 1;
+                let film = if s.sky {
+                    to.project_direction(s.point)
+                } else {
+                    to.project(s.point)
+                };
+                let Some(f) = film.filter(|f| {
+                    f.x >= 0.0 && f.y >= 0.0 && (f.x as usize) < w && (f.y as usize) < h
+                }) else {
+                    r.out_of_view = 1;
+                    return r;
+                };
+                let t = f.y as usize * w + f.x as usize;
+                if s.specular {
+                    mark(t, Fate::Specular);
+                    r.specular = 1;
+                    return r;
+                }
+                if s.mixed {
+                    mark(t, Fate::Mixed);
+                    r.mixed = 1;
+                    return r;
+                }
+                let error = view_error(s, eye_from, eye_to);
+                if error.is_nan() || error > config.max_error {
+                    mark(t, Fate::ViewError);
+                    r.view_error = 1;
+                    return r;
+                }
+                let distance = if s.sky {
+                    f32::INFINITY
+                } else {
+                    (s.point - eye_to).length()
+                };
+                if occluded(world, eye_to, s, distance, config.occlusion_tolerance) {
+                    mark(t, Fate::Occluded);
+                    r.occluded = 1;
+                    return r;
+                }
+                let q = if k == 4 && !s.sky { quadrant(f) } else { 0 };
+                let key = ((distance.to_bits() as u64) << 32) | j as u64;
+                claims[t * k + q].fetch_min(key, Ordering::Relaxed);
+                r.kept = 1;
+                r
+            })
+            .reduce(ReprojectionReport::default, ReprojectionReport::add);
+
+        // Each target takes its winning states, and the largest probability they bring.
+        self.probability.clear();
+        self.probability.extend_from_slice(probability);
+        let (source, before) = (&self.slots.current, &self.probability);
+        let kept_states: u64 = self
+            .slots
+            .previous
+            .par_chunks_mut(k * CHUNK)
+            .zip(history.par_chunks_mut(CHUNK))
+            .zip(probability.par_chunks_mut(CHUNK))
+            .zip(self.fates.par_chunks_mut(CHUNK))
+            .zip(self.kept.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(c, ((((targets, hist), prob), fates), kept))| {
+                let mut count = 0;
+                let pixels = hist
+                    .iter_mut()
+                    .zip(prob.iter_mut())
+                    .zip(fates.iter_mut().zip(kept));
+                for (p, (slots, ((h, prob), (fate, kept)))) in
+                    targets.chunks_mut(k).zip(pixels).enumerate()
+                {
+                    let t = c * CHUNK + p;
+                    let mut n = 0;
+                    *prob = NO_PROBABILITY;
+                    for (q, slot) in slots.iter_mut().enumerate() {
+                        let key = claims[t * k + q].swap(NO_CLAIM, Ordering::Relaxed);
+                        *slot = if key == NO_CLAIM {
+                            Slot::default()
+                        } else {
+                            n += 1;
+                            let j = (key & 0xffff_ffff) as usize;
+                            *prob = prob.max(before[j / k]);
+                            let mut s = source[j];
+                            s.carried = true;
+                            // Re-centred on its new pixel, so that the next move maps the
+                            // states one to one again.
+                            let film = centre(t, w, q, k);
+                            s.point = if s.sky {
+                                to.primary_ray(film, Vec2::splat(0.5)).direction
+                            } else {
+                                snap(to, film, s.point, s.normal)
+                            };
+                            s
+                        };
+                    }
+                    let mark = marks[t].swap(0, Ordering::Relaxed);
+                    *fate = if n > 0 { Fate::Kept as u8 } else { mark };
+                    *kept = n;
+                    *h = merged(slots);
+                    count += n as u64;
+                }
+                count
+            })
+            .sum();
+        self.slots.swap();
+        report.collisions = report.kept - kept_states;
+        report.kept = kept_states;
+        report
+    }
+}
+
+impl Reprojection {
+    /// The statistics pixel `pixel` keeps after the aliasing depth test against its new
+    /// G-buffer pixel `g` (what the accumulation pass will leave of its states).
+    #[inline]
+    pub fn surviving(&self, pixel: usize, g: &GPixel, tolerance: f32) -> PixelStats {
+        let k = self.samples;
+        let mut h = PixelStats::default();
+        for s in &self.slots.current[pixel * k..pixel * k + k] {
+            if s.stats.n > 0 && s.agrees(g, tolerance) {
+                h.merge(&s.stats);
+            }
+        }
+        h
+    }
+
+    /// The fate of pixel `pixel` at the last move.
+    pub fn fate(&self, pixel: usize) -> Fate {
+        Fate::from_u8(self.fates.get(pixel).copied().unwrap_or(0))
+    }
+
+    /// The accumulation pass: on the frame after a move (`after_move`) first drops the
+    /// states that fail the aliasing depth test (of tolerance `tolerance`), then merges each
+    /// pixel's new samples into the state of the quadrant its first hit projects into
+    /// (starting the state from this frame's G-buffer and first bounce when it was empty),
+    /// and rebuilds the pixel's history. A pixel that loses all its states to the test loses
+    /// the probability they brought too. A carried state that a later sample of its quadrant
+    /// disagrees with is dropped too. Returns the states dropped.
+    #[allow(clippy::too_many_arguments)]
+    pub fn accumulate(
+        &mut self,
+        world: &World,
+        camera: &Camera,
+        gbuffer: &super::gbuffer::GBuffer,
+        lighting: &[LightSample],
+        tolerance: f32,
+        after_move: bool,
+        history: &mut [PixelStats],
+        probability: &mut [f32],
+    ) -> u64 {
+        let k = self.samples;
+        let w = gbuffer.width.max(1) as usize;
+        let materials = &world.scene.materials;
+        self.slots
+            .current
+            .par_chunks_mut(k * CHUNK)
+            .zip(gbuffer.pixels.par_chunks(CHUNK))
+            .zip(lighting.par_chunks(CHUNK))
+            .zip(
+                history
+                    .par_chunks_mut(CHUNK)
+                    .zip(probability.par_chunks_mut(CHUNK)),
+            )
+            .zip(
+                self.fates
+                    .par_chunks_mut(CHUNK)
+                    .zip(self.kept.par_chunks_mut(CHUNK)),
+            )
+            .enumerate()
+            .map(|(c, ((((slots, gs), ls), (hs, ps)), (fates, kept)))| {
+                let mut dropped = 0;
+                let pixels = gs
+                    .iter()
+                    .zip(ls)
+                    .zip(hs.iter_mut().zip(ps))
+                    .zip(fates.iter_mut().zip(kept));
+                for (p, (slots, (((g, l), (h, prob)), (fate, kept)))) in
+                    slots.chunks_mut(k).zip(pixels).enumerate()
+                {
+                    if after_move {
+                        for s in slots.iter_mut() {
+                            if s.stats.n > 0 && !s.agrees(g, tolerance) {
+                                *s = Slot::default();
+                                dropped += 1;
+                                *kept -= 1;
+                                if *kept == 0 {
+                                    *fate = Fate::Aliasing as u8;
+                                    *prob = NO_PROBABILITY;
+                                }
+                            }
+                        }
+                    }
+                    if l.stats.n > 0 {
+                        let q = if k == 4 && !g.is_sky() {
+                            camera.project(g.position).map_or(0, quadrant)
+                        } else {
+                            0
+                        };
+                        let s = &mut slots[q];
+                        if s.stats.n > 0 && !s.agrees(g, tolerance) {
+                            if s.carried {
+                                // Its old footprint's surface is not all this one sees.
+                                *s = Slot::default();
+                                dropped += 1;
+                            } else {
+                                s.mixed = true;
+                            }
+                        }
+                        if s.stats.n == 0 {
+                            let film = centre(c * CHUNK + p, w, q, k);
+                            *s = Slot::start(g, &l.bounce, materials.get(g.material as usize));
+                            s.point = if s.sky {
+                                camera.primary_ray(film, Vec2::splat(0.5)).direction
+                            } else {
+                                snap(camera, film, s.point, s.normal)
+                            };
+                        }
+                        s.add(l);
+                    }
+                    *h = merged(slots);
+                }
+                dropped
+            })
+            .sum()
+    }
+}
+
+/// Where the camera ray through film position `film` meets the plane through `point` with
+/// normal `normal`: a state's point as seen from its pixel's (or quadrant's) centre. `point`
+/// itself where the ray grazes the plane or meets it far (a quarter of the distance) from it.
+#[inline]
+fn snap(camera: &Camera, film: Vec2, point: Vec3, normal: Vec3) -> Vec3 {
+    let ray = camera.primary_ray(film, Vec2::splat(0.5));
+    let to_point = point - ray.origin;
+    let cos = normal.dot(ray.direction);
+    if cos.is_nan() || cos.abs() <= 1e-3 {
+        return point;
+    }
+    let t = normal.dot(to_point) / cos;
+    let p = ray.origin + ray.direction * t;
+    if t > 0.0 && (p - point).length_squared() <= 0.0625 * to_point.length_squared() {
+        p
+    } else {
+        point
+    }
+}
+
+/// The centre of quadrant `q` of pixel `t` (of an image `w` wide) with `k` states per pixel
+/// (the pixel's centre with one).
+#[inline]
+fn centre(t: usize, w: usize, q: usize, k: usize) -> Vec2 {
+    let pixel = Vec2::new((t % w) as f32, (t / w) as f32);
+    if k == 4 {
+        pixel + Vec2::new(0.25 + 0.5 * (q & 1) as f32, 0.25 + 0.5 * (q >> 1) as f32)
+    } else {
+        pixel + 0.5
+    }
+}
+
+/// Whether something hides `slot`'s stored point, `distance` away, from a camera at `eye`.
+fn occluded(world: &World, eye: Vec3, slot: &Slot, distance: f32, tolerance: f32) -> bool {
+    if slot.sky {
+        return world.accel.occluded(&Ray::new(eye, slot.point));
+    }
+    let d = slot.point - eye;
+    if distance.is_nan() || distance <= 0.0 {
+        return false;
+    }
+    let ray = Ray::segment(eye, d / distance, 0.0, distance * (1.0 - tolerance));
+    world.accel.occluded(&ray)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pathlight_core::rng::Rng;
+    use std::f32::consts::PI;
+
+    fn slot(f0: f32, f90: f32, alpha: f32) -> Slot {
+        Slot {
+            stats: PixelStats::one(Vec3::ONE, Vec3::ZERO),
+            normal: Vec3::Z,
+            direction: Vec3::new(0.3, 0.0, 1.0).normalize(),
+            albedo: Vec3::ONE,
+            irradiance: Vec3::ONE,
+            alpha,
+            f0,
+            f90,
+            ..Slot::default()
+        }
+    }
+
+    #[test]
+    fn reflection_at_normal_incidence_is_beckmanns_peak() {
+        // i = o = n: h = n, D = 1 / (pi alpha^2), Lambda(n) = 0 so G = 1, F = f0.
+        for (alpha, f0) in [(0.1, 0.04), (0.5, 1.0), (0.02, 0.5)] {
+            let f = reflection(Vec3::Z, Vec3::Z, Vec3::Z, alpha, f0, 1.0);
+            let expected = f0 / (4.0 * PI * alpha * alpha);
+            assert!((f - expected).abs() < 1e-4 * expected, "{f} vs {expected}");
+        }
+    }
+
+    #[test]
+    fn reflection_is_reciprocal_and_conserves_energy() {
+        let mut rng = Rng::new(3, 0);
+        let n = Vec3::Z;
+        for _ in 0..100 {
+            let mut dir = || {
+                let (u, v) = (rng.next_f32(), rng.next_f32());
+                let r = (1.0 - u * u).max(0.0).sqrt();
+                Vec3::new(r * (2.0 * PI * v).cos(), r * (2.0 * PI * v).sin(), u)
+            };
+            let (i, o) = (dir(), dir());
+            let (a, b) = (
+                reflection(i, o, n, 0.3, 0.2, 1.0),
+                reflection(o, i, n, 0.3, 0.2, 1.0),
+            );
+            assert!((a - b).abs() <= 1e-5 * a.max(1.0), "{a} vs {b}");
+        }
+        // Directional albedo at normal incidence of a perfect reflector (F = 1), by uniform
+        // hemisphere sampling: at most 1, and close to it for a smooth surface (Smith's
+        // masking loses a few percent at grazing angles only).
+        let mut rng = Rng::new(5, 1);
+        for (alpha, low) in [(0.2, 0.95), (0.5, 0.85)] {
+            let count = 200_000;
+            let mut sum = 0.0f64;
+            for _ in 0..count {
+                let (u, v) = (rng.next_f32(), rng.next_f32());
+                let r = (1.0 - u * u).max(0.0).sqrt();
+                let o = Vec3::new(r * (2.0 * PI * v).cos(), r * (2.0 * PI * v).sin(), u);
+                sum += f64::from(reflection(Vec3::Z, o, n, alpha, 1.0, 1.0) * u * 2.0 * PI);
+            }
+            let albedo = sum / count as f64;
+            assert!(
+                albedo > low && albedo < 1.01,
+                "alpha {alpha}: albedo {albedo}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_view_error_vanishes_without_a_move_a_lobe_or_a_surface() {
+        let glossy = slot(0.04, 1.0, 0.1);
+        let (a, b) = (Vec3::new(0.0, 0.0, 3.0), Vec3::new(1.0, 0.0, 3.0));
+        assert_eq!(view_error(&glossy, a, a), 0.0);
+        assert!(view_error(&glossy, a, b) > 1.0 / 256.0);
+        // Lambertian (no specular layer): view independent.
+        assert_eq!(view_error(&slot(0.0, 0.0, 0.1), a, b), 0.0);
+        let sky = Slot {
+            sky: true,
+            ..glossy
+        };
+        assert_eq!(view_error(&sky, a, b), 0.0);
+        // Scales with what arrives along L and the base colour.
+        let dim = Slot {
+            irradiance: Vec3::splat(0.5),
+            ..glossy
+        };
+        let e = view_error(&glossy, a, b);
+        assert!((view_error(&dim, a, b) - 0.5 * e).abs() < 1e-6 * e);
+    }
+
+    #[test]
+    fn only_smooth_lobes_and_transmission_count_as_specular() {
+        let g = |roughness: f32, metallic: f32| GPixel {
+            roughness,
+            metallic,
+            material: 0,
+            ..GPixel::default()
+        };
+        let bounce = Bounce::default();
+        let lambert = Material {
+            roughness: 0.0,
+            specular: 0.0,
+            ..Material::default()
+        };
+        let plastic = Material {
+            specular: 1.0,
+            ..Material::default()
+        };
+        let glass = Material {
+            transmission: 1.0,
+            specular: 1.0,
+            roughness: 0.5,
+            ..Material::default()
+        };
+        assert!(!Slot::start(&g(0.0, 0.0), &bounce, Some(&lambert)).specular);
+        assert!(
+            Slot::start(&g(0.0, 1.0), &bounce, Some(&lambert)).specular,
+            "a mirror"
+        );
+        assert!(Slot::start(&g(0.05, 0.0), &bounce, Some(&plastic)).specular);
+        assert!(!Slot::start(&g(0.2, 0.0), &bounce, Some(&plastic)).specular);
+        assert!(Slot::start(&g(0.5, 0.0), &bounce, Some(&glass)).specular);
+    }
+}
