@@ -567,6 +567,9 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
         }
     });
     let summary = Summary::of(&reports, pool.current_num_threads());
+    let pixels = (config.width as f64 * config.height as f64).max(1.0);
+    let (plain_bytes, technique_bytes) = pipeline.bytes();
+    let (plain_bpp, technique_bpp) = (plain_bytes as f64 / pixels, technique_bytes as f64 / pixels);
     let ms_per_frame = summary.ms_per_frame;
     let rays: u64 = reports.iter().map(|r| r.rays).sum();
     let threads = summary.threads;
@@ -591,6 +594,9 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
                 "rays_per_frame": rays as f64 / args.frames as f64,
                 "passes": summary.passes_json(),
                 "peak_rss_bytes": crate::memory::peak_rss_bytes(),
+                "bytes_per_pixel": plain_bpp,
+                "technique_bytes_per_pixel": technique_bpp,
+                "samples_per_pixel": reports.iter().map(|r| r.samples as f64).sum::<f64>() / reports.len().max(1) as f64 / pixels,
             })
         );
     } else {
@@ -610,6 +616,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
             summary.mrays_per_s,
             rays as f64 / args.frames as f64 / (config.width as f64 * config.height as f64)
         );
+        println!("memory: {plain_bpp:.0} bytes per pixel, {technique_bpp:.0} more for seed 000's techniques");
     }
     Ok(())
 }

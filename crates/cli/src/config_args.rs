@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
+use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::sampler::SamplerKind;
 use pathlight_render::Config;
@@ -111,6 +112,15 @@ pub struct ConfigArgs {
     #[arg(long, value_name = "N")]
     pub max_spp: Option<u32>,
 
+    /// Adaptive sampling: the measure V of a pixel's noise, luminance (the thesis's Eq. 12:
+    /// relative) or tonemapped (as displayed) [default: luminance].
+    #[arg(long, value_name = "MEASURE", value_parser = parse_measure)]
+    pub adaptive_measure: Option<Measure>,
+
+    /// Adaptive sampling with reprojection: the combination's fix (no pixel past max spp).
+    #[arg(long)]
+    pub adaptive_cap: bool,
+
     /// Seed 000's forward reprojection: keep the samples that stay valid when the camera
     /// moves.
     #[arg(long)]
@@ -123,6 +133,16 @@ pub struct ConfigArgs {
     /// Reprojection: largest view-dependency error (Eq. 15) kept [default: 1/256].
     #[arg(long, value_name = "X")]
     pub max_error: Option<f32>,
+}
+
+fn parse_measure(s: &str) -> Result<Measure, String> {
+    Measure::ALL
+        .into_iter()
+        .find(|m| m.name() == s)
+        .ok_or_else(|| {
+            let names: Vec<&str> = Measure::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown measure {s:?}; one of {}", names.join(", "))
+        })
 }
 
 /// A bounce limit: a number, or none.
@@ -287,6 +307,8 @@ impl ConfigArgs {
         adaptive.enabled |= self.adaptive;
         adaptive.min_spp = self.min_spp.unwrap_or(adaptive.min_spp);
         adaptive.max_spp = self.max_spp.unwrap_or(adaptive.max_spp);
+        adaptive.measure = self.adaptive_measure.unwrap_or(adaptive.measure);
+        adaptive.cap |= self.adaptive_cap;
         reprojection.enabled |= self.reprojection;
         reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
         reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);

@@ -4,8 +4,10 @@
 use eframe::egui;
 use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
+use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
-use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY};
+use pathlight_render::frame::reprojection::Fate;
+use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY, REPROJECT};
 use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
 
@@ -59,6 +61,18 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
             0.0
         }
     ));
+    if let Some(r) = &report.reprojection {
+        ui.label(format!(
+            "reprojected {} of {} states: {} out of view, {} specular, {} mixed, {} view error, {} occluded, {} collided, {} aliased",
+            r.kept, r.states, r.out_of_view, r.specular, r.mixed, r.view_error, r.occluded, r.collisions, r.aliasing
+        ));
+    }
+    if let Some(tau) = report.tau {
+        ui.label(format!(
+            "adaptive: tau {tau:.3}, {:.2} samples per pixel this frame",
+            report.samples as f64 / (*w as f64 * *h as f64).max(1.0)
+        ));
+    }
     let total = report.ms.max(1e-6);
     egui::Grid::new("passes").show(ui, |ui| {
         for p in &report.passes {
@@ -91,13 +105,21 @@ fn display(v: &mut Viewer, ui: &mut egui::Ui) {
     egui::ComboBox::from_label("mode")
         .selected_text(format!("{} ({})", d.mode.name(), d.mode.pass()))
         .show_ui(ui, |ui| {
-            for pass in [ACCUMULATE, LIGHTING, PRIMARY] {
+            for pass in [ACCUMULATE, REPROJECT, LIGHTING, PRIMARY] {
                 ui.label(egui::RichText::new(pass).strong());
                 for m in DisplayMode::ALL.into_iter().filter(|m| m.pass() == pass) {
                     ui.selectable_value(&mut d.mode, m, m.name());
                 }
             }
         });
+    if d.mode == DisplayMode::Rejection {
+        ui.horizontal_wrapped(|ui| {
+            for fate in Fate::ALL {
+                let [r, g, b] = fate.colour();
+                ui.colored_label(egui::Color32::from_rgb(r, g, b), format!("{fate:?}"));
+            }
+        });
+    }
     let mut stops = d.exposure.max(1e-6).log2();
     if ui
         .add(egui::Slider::new(&mut stops, -10.0..=10.0).text("exposure (stops)"))
@@ -163,6 +185,35 @@ fn camera(v: &mut Viewer, ui: &mut egui::Ui) {
 
 fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     let c = &mut v.config;
+    ui.label(egui::RichText::new(REPROJECT).strong());
+    let r = &mut c.frame.reprojection;
+    ui.checkbox(
+        &mut r.enabled,
+        "forward reprojection (seed 000): keep samples through camera moves",
+    );
+    ui.add_enabled_ui(r.enabled, |ui| {
+        ui.horizontal(|ui| {
+            ui.label("states per pixel");
+            ui.radio_value(&mut r.samples, 1, "1");
+            ui.radio_value(&mut r.samples, 4, "4");
+        });
+        ui.add(
+            egui::Slider::new(&mut r.max_error, 1e-4..=1.0)
+                .logarithmic(true)
+                .text("max view error (Eq. 15)"),
+        );
+        ui.checkbox(
+            &mut r.occlusion_rays,
+            "occlusion rays (else the aliasing test alone)",
+        );
+        ui.add(
+            egui::Slider::new(&mut r.depth_tolerance, 1e-3..=0.5)
+                .logarithmic(true)
+                .text("aliasing depth tolerance"),
+        );
+    });
+    ui.separator();
+
     ui.label(egui::RichText::new(PRIMARY).strong());
     ui.label("camera rays to the G-buffer: position, normal, albedo, roughness, metallic, material, depth, motion");
     ui.separator();
@@ -215,6 +266,28 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
             .logarithmic(true)
             .text("stop after frames (0: never)"),
     );
+    let a = &mut c.frame.adaptive;
+    ui.checkbox(
+        &mut a.enabled,
+        "adaptive sampling (seed 000): samples where the variance is",
+    );
+    ui.add_enabled_ui(a.enabled, |ui| {
+        ui.add(egui::Slider::new(&mut a.min_spp, 1..=64).text("min spp"));
+        ui.add(
+            egui::Slider::new(&mut a.max_spp, 1..=256)
+                .logarithmic(true)
+                .text("max spp"),
+        );
+        a.max_spp = a.max_spp.max(a.min_spp);
+        egui::ComboBox::from_label("measure V")
+            .selected_text(a.measure.name())
+            .show_ui(ui, |ui| {
+                for m in Measure::ALL {
+                    ui.selectable_value(&mut a.measure, m, m.name());
+                }
+            });
+        ui.checkbox(&mut a.cap, "cap at max spp (the combination's fix)");
+    });
     ui.separator();
 
     ui.label(egui::RichText::new(DISPLAY).strong());

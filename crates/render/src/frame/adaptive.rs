@@ -83,9 +83,28 @@ impl Default for AdaptiveConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Measure {
-    /// Eq. 12: the standard deviation of a sample over the luminance of the pixel's mean.
+    /// Eq. 12: the standard deviation of a sample over the luminance of the pixel's mean
+    /// (relative error: dark pixels, such as shadows under a sun, take the most samples).
     #[default]
     Luminance,
+    /// Beyond the thesis: the standard deviation of a sample after tone mapping, to first
+    /// order: `2 sigma / (1 + L)^2`, the deviation through Reinhard's `L / (1 + L)` (whose
+    /// slope is `1 / (1 + L)^2`), doubled so that it spans [0, 1] as a display value's does.
+    /// Noise as the displayed image shows it: neither the shadows' relative noise nor the
+    /// highlights' absolute noise dominates.
+    Tonemapped,
+}
+
+impl Measure {
+    pub const ALL: [Measure; 2] = [Measure::Luminance, Measure::Tonemapped];
+
+    /// Its name in configuration files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Measure::Luminance => "luminance",
+            Measure::Tonemapped => "tonemapped",
+        }
+    }
 }
 
 impl AdaptiveConfig {
@@ -124,6 +143,10 @@ pub fn deviation(stats: &PixelStats, measure: Measure) -> f32 {
         Measure::Luminance => {
             let l = luminance(stats.mean()).max(0.0);
             (pixel_variance(stats).max(0.0).sqrt() + EPSILON) / (l + EPSILON)
+        }
+        Measure::Tonemapped => {
+            let l = luminance(stats.mean()).max(0.0);
+            2.0 * pixel_variance(stats).max(0.0).sqrt() / ((1.0 + l) * (1.0 + l)) + EPSILON
         }
     }
 }
@@ -276,6 +299,28 @@ mod tests {
             deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Luminance),
             1.0
         );
+
+        // Tone-mapped: the deviation of L / (1 + L) to first order, checked against the
+        // deviation of tone-mapped samples of small spread around 3 (grey: L = the value).
+        let seq: Vec<Vec3> = (0..1000)
+            .map(|i| Vec3::splat(3.0 + 0.01 * ((i % 2) as f32 * 2.0 - 1.0)))
+            .collect();
+        let tm: Vec<f32> = seq.iter().map(|v| v.x / (1.0 + v.x)).collect();
+        let mean = tm.iter().sum::<f32>() / tm.len() as f32;
+        let sd = (tm.iter().map(|t| (t - mean).powi(2)).sum::<f32>() / 999.0).sqrt();
+        let v = deviation(&stats_of(&seq), Measure::Tonemapped);
+        assert!(
+            (v - (2.0 * sd + EPSILON)).abs() < 1e-2 * v,
+            "{v} vs {}",
+            2.0 * sd
+        );
+        // Unlike Eq. 12, a dark pixel's noise is not inflated, a bright one's is damped.
+        let dark = stats_of(&[Vec3::splat(0.01), Vec3::splat(0.03)]);
+        let bright = stats_of(&[Vec3::splat(9.0), Vec3::splat(11.0)]);
+        assert!(deviation(&dark, Measure::Luminance) > deviation(&bright, Measure::Luminance));
+        assert!(deviation(&dark, Measure::Tonemapped) < 0.05);
+        assert!(deviation(&bright, Measure::Tonemapped) < 0.05);
+        assert!(deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Tonemapped) <= EPSILON);
     }
 
     #[test]

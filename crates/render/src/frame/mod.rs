@@ -483,6 +483,20 @@ impl Pipeline {
         report.ms += ms;
     }
 
+    /// Bytes the pipeline's per-pixel buffers hold: the plain pipeline's (G-buffer,
+    /// lighting, history, display) and seed 000's techniques' (probabilities, states and
+    /// their scratch).
+    pub fn bytes(&self) -> (usize, usize) {
+        use std::mem::size_of;
+        let plain = self.gbuffer.pixels.capacity() * size_of::<GPixel>()
+            + self.lighting.capacity() * size_of::<LightSample>()
+            + self.history.capacity() * size_of::<PixelStats>()
+            + self.rgba.capacity();
+        let techniques =
+            self.adaptive.probability.capacity() * size_of::<f32>() + self.reprojection.bytes();
+        (plain, techniques)
+    }
+
     /// The buffers the display modes read.
     pub fn sources(&self) -> Sources<'_> {
         Sources {

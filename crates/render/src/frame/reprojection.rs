@@ -42,7 +42,11 @@
 //!    rotation `V_t == V_{t-1}`, so the error is exactly 0;
 //! 5. occlusion: a ray from the new camera towards the stored point must reach it, short by
 //!    `occlusion_tolerance` of the distance (the sky: a ray in its direction must escape).
-//!    Cut-out (alpha) surfaces count as opaque here;
+//!    Cut-out (alpha) surfaces count as opaque here. The rays of neighbouring states go
+//!    together as packets. None is traced when the camera's position did not change (what
+//!    the eye saw first along a ray it still sees first), nor with `occlusion_rays` off
+//!    (a speed option beyond the thesis: the aliasing test still refuses a hidden state
+//!    unless its occluder is smaller than a pixel);
 //! 6. (in the accumulation pass of that frame, where the new G-buffer is known) the aliasing
 //!    depth test: the frame's camera ray through the target pixel must hit the stored
 //!    point's surface: the same material, and a distance to the stored point's tangent plane
@@ -106,6 +110,11 @@ pub struct ReprojectionConfig {
     /// Largest view-dependency error (Eq. 15) of a reprojected state, in units of radiance
     /// (the thesis: 1/256).
     pub max_error: f32,
+    /// Trace the occlusion ray of every state (the thesis). Without it, a hidden state is
+    /// still refused by the aliasing test on the next frame unless its occluder is smaller
+    /// than a pixel. Under pure rotation (the camera's position unchanged) no ray is traced
+    /// either way: what the eye saw first along a ray it still sees first.
+    pub occlusion_rays: bool,
     /// The occlusion ray stops this fraction of the distance short of the stored point.
     pub occlusion_tolerance: f32,
     /// The aliasing depth test: largest distance of the new hit from the stored point's
@@ -119,6 +128,7 @@ impl Default for ReprojectionConfig {
             enabled: false,
             samples: 1,
             max_error: 1.0 / 256.0,
+            occlusion_rays: true,
             occlusion_tolerance: 1e-3,
             depth_tolerance: 0.02,
         }
@@ -281,7 +291,7 @@ pub fn reflection(i: Vec3, o: Vec3, n: Vec3, alpha: f32, f0: f32, f90: f32) -> f
 /// Eq. 15: the view-dependency error of moving `slot` from a camera at `from` to one at `to`,
 /// the largest channel of `|f_r(V_t, L, N) - f_r(V_{t-1}, L, N)| A I` (0 for the sky).
 pub fn view_error(slot: &Slot, from: Vec3, to: Vec3) -> f32 {
-    if slot.sky {
+    if slot.sky || slot.f90 <= 0.0 || from == to {
         return 0.0;
     }
     let view = |eye: Vec3| (eye - slot.point).normalize_or_zero();
@@ -453,7 +463,7 @@ impl Reprojection {
         self.valid = true;
     }
 
-    /// Bytes held per pixel.
+    /// Bytes held (states, claims, marks, fates, scratch).
     pub fn bytes(&self) -> usize {
         self.slots.bytes()
             + self.claims.capacity() * 8
@@ -486,63 +496,84 @@ impl Reprojection {
         let mark = |t: usize, fate: Fate| {
             marks[t].fetch_max(fate as u8, Ordering::Relaxed);
         };
-        // Each state: its target, the checks, and a claim on the target (nearest wins).
+        // Each state: its target and the checks; then the occlusion rays of a chunk's
+        // survivors together (rays from one eye into neighbouring pixels: coherent packets);
+        // then a claim on the target (nearest wins).
+        let tolerance = config.occlusion_tolerance;
+        let trace_rays = config.occlusion_rays && eye_from != eye_to;
         let mut report = self
             .slots
             .current
-            .par_iter()
+            .par_chunks(CHUNK)
             .enumerate()
-            .with_min_len(CHUNK)
-            .map(|(j, s)| {
-                let mut r = ReprojectionReport::default();
-                if s.stats.n == 0 {
-                    return r;
-                }
-                r.states = 1;
-                let film = if s.sky {
-                    to.project_direction(s.point)
-                } else {
-                    to.project(s.point)
-                };
-                let Some(f) = film.filter(|f| {
-                    f.x >= 0.0 && f.y >= 0.0 && (f.x as usize) < w && (f.y as usize) < h
-                }) else {
-                    r.out_of_view = 1;
-                    return r;
-                };
-                let t = f.y as usize * w + f.x as usize;
-                if s.specular {
-                    mark(t, Fate::Specular);
-                    r.specular = 1;
-                    return r;
-                }
-                if s.mixed {
-                    mark(t, Fate::Mixed);
-                    r.mixed = 1;
-                    return r;
-                }
-                let error = view_error(s, eye_from, eye_to);
-                if error.is_nan() || error > config.max_error {
-                    mark(t, Fate::ViewError);
-                    r.view_error = 1;
-                    return r;
-                }
-                let distance = if s.sky {
-                    f32::INFINITY
-                } else {
-                    (s.point - eye_to).length()
-                };
-                if occluded(world, eye_to, s, distance, config.occlusion_tolerance) {
-                    mark(t, Fate::Occluded);
-                    r.occluded = 1;
-                    return r;
-                }
-                let q = if k == 4 && !s.sky { quadrant(f) } else { 0 };
-                let key = ((distance.to_bits() as u64) << 32) | j as u64;
-                claims[t * k + q].fetch_min(key, Ordering::Relaxed);
-                r.kept = 1;
-                r
-            })
+            .map_init(
+                || {
+                    (
+                        Vec::with_capacity(CHUNK),
+                        Vec::with_capacity(CHUNK),
+                        Vec::new(),
+                    )
+                },
+                |(candidates, rays, hits), (c, chunk)| {
+                    let mut r = ReprojectionReport::default();
+                    candidates.clear();
+                    rays.clear();
+                    for (i, s) in chunk.iter().enumerate() {
+                        if s.stats.n == 0 {
+                            continue;
+                        }
+                        r.states += 1;
+                        let film = if s.sky {
+                            to.project_direction(s.point)
+                        } else {
+                            to.project(s.point)
+                        };
+                        let Some(f) = film.filter(|f| {
+                            f.x >= 0.0 && f.y >= 0.0 && (f.x as usize) < w && (f.y as usize) < h
+                        }) else {
+                            r.out_of_view += 1;
+                            continue;
+                        };
+                        let t = f.y as usize * w + f.x as usize;
+                        if s.specular {
+                            mark(t, Fate::Specular);
+                            r.specular += 1;
+                            continue;
+                        }
+                        if s.mixed {
+                            mark(t, Fate::Mixed);
+                            r.mixed += 1;
+                            continue;
+                        }
+                        let error = view_error(s, eye_from, eye_to);
+                        if error.is_nan() || error > config.max_error {
+                            mark(t, Fate::ViewError);
+                            r.view_error += 1;
+                            continue;
+                        }
+                        let (ray, distance) = occlusion_ray(eye_to, s, tolerance);
+                        let q = if k == 4 && !s.sky { quadrant(f) } else { 0 };
+                        candidates.push((c * CHUNK + i, t, q, distance));
+                        rays.push(ray);
+                    }
+                    hits.clear();
+                    hits.resize(rays.len(), None);
+                    if trace_rays {
+                        world.accel.intersect_batch(rays, hits);
+                    }
+                    for (&(j, t, q, distance), hit) in candidates.iter().zip(hits.iter()) {
+                        if hit.is_some() {
+                            mark(t, Fate::Occluded);
+                            r.occluded += 1;
+                        } else {
+                            let key = ((distance.to_bits() as u64) << 32) | j as u64;
+                            claims[t * k + q].fetch_min(key, Ordering::Relaxed);
+                            r.kept += 1;
+                        }
+                    }
+                    r
+                },
+            )
             .reduce(ReprojectionReport::default, ReprojectionReport::add);
 
         // Each target takes its winning states, and the largest probability they bring.
@@ -755,17 +786,22 @@ fn centre(t: usize, w: usize, q: usize, k: usize) -> Vec2 {
     }
 }
 
-/// Whether something hides `slot`'s stored point, `distance` away, from a camera at `eye`.
-fn occluded(world: &World, eye: Vec3, slot: &Slot, distance: f32, tolerance: f32) -> bool {
+/// The ray from a camera at `eye` towards `slot`'s stored point (stopping `tolerance` of the
+/// distance short of it; for the sky, unbounded in its direction), and the distance (infinite
+/// for the sky). Anything it hits hides the point.
+#[inline]
+fn occlusion_ray(eye: Vec3, slot: &Slot, tolerance: f32) -> (Ray, f32) {
     if slot.sky {
-        return world.accel.occluded(&Ray::new(eye, slot.point));
+        return (Ray::new(eye, slot.point), f32::INFINITY);
     }
     let d = slot.point - eye;
+    let distance = d.length();
     if distance.is_nan() || distance <= 0.0 {
-        return false;
+        // At the eye: nothing can hide it (an empty segment).
+        return (Ray::segment(eye, Vec3::Z, 0.0, 0.0), 0.0);
     }
     let ray = Ray::segment(eye, d / distance, 0.0, distance * (1.0 - tolerance));
-    world.accel.occluded(&ray)
+    (ray, distance)
 }
 
 #[cfg(test)]
