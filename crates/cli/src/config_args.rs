@@ -222,31 +222,8 @@ pub fn load_config(path: &std::path::Path, base: &Config) -> Result<Config> {
         );
     }
     let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    // Fields the file leaves out keep `base`'s values: merge the file's table over base's.
-    let mut merged = toml::Value::try_from(base).expect("a Config serialises to TOML");
-    let file: toml::Value =
-        toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    merge(&mut merged, file);
-    merged
-        .try_into()
-        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {e}", path.display()))
-}
-
-/// Merges `over` into `base`, table by table.
-fn merge(base: &mut toml::Value, over: toml::Value) {
-    match (base, over) {
-        (toml::Value::Table(b), toml::Value::Table(o)) => {
-            for (k, v) in o {
-                match b.get_mut(&k) {
-                    Some(slot) => merge(slot, v),
-                    None => {
-                        b.insert(k, v);
-                    }
-                }
-            }
-        }
-        (slot, v) => *slot = v,
-    }
+    base.with_toml(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
 impl ConfigArgs {

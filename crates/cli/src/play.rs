@@ -136,10 +136,59 @@ fn load_path(arg: &str, world: &World, config: &Config) -> Result<CameraPath> {
                 );
             }
             let text = std::fs::read_to_string(p).with_context(|| file.to_string())?;
-            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{file}: {e}"))?
+            let path: CameraPath =
+                toml::from_str(&text).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+            with_camera_flags(path, &camera).map_err(|e| anyhow::anyhow!("{file}: {e}"))?
         }
     };
     path.validate().map_err(|e| anyhow::anyhow!("{arg}: {e}"))?;
+    Ok(path)
+}
+
+/// A path file's first view with the camera flags (`flags`' `look_from`, `look_at`, `up`,
+/// `fov_y`) where the file leaves them unset. A flag that contradicts the file, or any flag
+/// with keyframes (which set every view themselves), is an error naming the field.
+fn with_camera_flags(mut path: CameraPath, flags: &CameraPath) -> Result<CameraPath, String> {
+    let given = [
+        ("look_from", "--look-from", flags.look_from.is_some()),
+        ("look_at", "--look-at", flags.look_at.is_some()),
+        ("up", "--up", flags.up.is_some()),
+        ("fov_y", "--fov-y", flags.fov_y.is_some()),
+    ];
+    if path.path == PathKind::Keyframes {
+        if let Some((_, flag, _)) = given.iter().find(|g| g.2) {
+            return Err(format!(
+                "{flag}: a keyframed path sets every view itself; leave out the camera flags"
+            ));
+        }
+        return Ok(path);
+    }
+    fn fill<T: PartialEq + std::fmt::Debug + Copy>(
+        file: &mut Option<T>,
+        flag: Option<T>,
+        field: &str,
+        name: &str,
+    ) -> Result<(), String> {
+        match (*file, flag) {
+            (Some(a), Some(b)) if a != b => Err(format!(
+                "{field} = {a:?} in the file, but {name} gives {b:?}; set it in one place"
+            )),
+            (None, Some(b)) => {
+                *file = Some(b);
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+    fill(
+        &mut path.look_from,
+        flags.look_from,
+        "look_from",
+        "--look-from",
+    )?;
+    fill(&mut path.look_at, flags.look_at, "look_at", "--look-at")?;
+    fill(&mut path.up, flags.up, "up", "--up")?;
+    fill(&mut path.fov_y, flags.fov_y, "fov_y", "--fov-y")?;
     Ok(path)
 }
 

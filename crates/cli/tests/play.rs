@@ -144,3 +144,69 @@ fn bad_paths_are_refused_naming_the_file() {
     assert!(stderr(&o).contains("--frames 0"), "{}", stderr(&o));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn camera_flags_set_a_path_files_first_view_or_are_refused() {
+    let dir = temp_dir("flags");
+    let file = dir.join("still.toml");
+    std::fs::write(&file, "path = \"still\"\nframes_per_view = 1\n").unwrap();
+    let view = [
+        "--look-from",
+        "0.6,1.2,3.0",
+        "--look-at",
+        "0,0.8,0",
+        "--fov-y",
+        "55",
+    ];
+    let run = |out: &str, path: &str, extra: &[&str]| {
+        let out = dir.join(out);
+        let mut args = vec![
+            "play", "--path", path, "--frames", "1", "--width", "48", "--height", "32", "--quiet",
+            "--out",
+        ];
+        args.push(s(&out));
+        args.extend_from_slice(extra);
+        let o = pathlight(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(out.join("frame-00000.png")).unwrap()
+    };
+    let builtin = run("builtin", "still", &view);
+    let from_file = run("file", s(&file), &view);
+    let scene_camera = run("scene", s(&file), &[]);
+    assert_eq!(builtin, from_file, "the flags set the file's first view");
+    assert_ne!(from_file, scene_camera, "without flags, the scene's camera");
+
+    // A flag that contradicts the file, and flags with keyframes, are refused.
+    let conflict = dir.join("conflict.toml");
+    std::fs::write(&conflict, "path = \"still\"\nlook_from = [0, 1, 3.5]\n").unwrap();
+    let keyframes = dir.join("keys.toml");
+    std::fs::write(
+        &keyframes,
+        "path = \"keyframes\"\n[[keyframes]]\ntime = 0\nlook_from = [0, 1, 3.5]\nlook_at = [0, 1, 0]\n",
+    )
+    .unwrap();
+    for (p, flags, needles) in [
+        (
+            &conflict,
+            &["--look-from", "1,1,3.5"][..],
+            ["conflict.toml", "look_from", "--look-from"],
+        ),
+        (
+            &keyframes,
+            &["--fov-y", "30"][..],
+            ["keys.toml", "keyframe", "--fov-y"],
+        ),
+    ] {
+        let mut args = vec!["play", "--path", s(p), "--width", "8", "--height", "8"];
+        args.extend_from_slice(flags);
+        let o = pathlight(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        for n in needles {
+            assert!(err.contains(n), "{n}: {err}");
+        }
+    }
+    // The same value in both places is fine.
+    run("same", s(&conflict), &["--look-from", "0,1,3.5"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

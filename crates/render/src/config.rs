@@ -174,6 +174,33 @@ impl Config {
         }
     }
 
+    /// This configuration with the fields a TOML text sets (any subset of the fields; those
+    /// it leaves out keep their values here). Not checked: see [`validate`](Self::validate).
+    pub fn with_toml(&self, text: &str) -> Result<Config, String> {
+        /// Merges `over` into `base`, table by table.
+        fn merge(base: &mut toml::Value, over: toml::Value) {
+            match (base, over) {
+                (toml::Value::Table(b), toml::Value::Table(o)) => {
+                    for (k, v) in o {
+                        match b.get_mut(&k) {
+                            Some(slot) => merge(slot, v),
+                            None => {
+                                b.insert(k, v);
+                            }
+                        }
+                    }
+                }
+                (slot, v) => *slot = v,
+            }
+        }
+        let mut merged = toml::Value::try_from(self).map_err(|e| e.to_string())?;
+        let file: toml::Value = toml::from_str(text).map_err(|e| e.to_string())?;
+        merge(&mut merged, file);
+        merged
+            .try_into()
+            .map_err(|e: toml::de::Error| e.to_string())
+    }
+
     /// Checks every value's range: image sides in 1..=[`MAX_SIDE`], spp in 1..=[`MAX_SPP`],
     /// field of view in (0, 180), finite non-negative lens radius, finite positive focus
     /// distance, finite camera vectors, and each technique's settings.
@@ -264,5 +291,38 @@ impl CameraConfig {
             _ => 45.0,
         });
         SceneCamera::look_at(&base.name, from, at, up, fov)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_fields_merge_over_a_configuration() {
+        let base = Config {
+            width: 99,
+            ..Config::realtime()
+        };
+        let c = base
+            .with_toml("spp = 3\n[frame.reprojection]\nenabled = true\n")
+            .unwrap();
+        assert_eq!((c.width, c.spp, c.max_bounces), (99, 3, Some(2)));
+        assert!(c.frame.reprojection.enabled && !c.frame.adaptive.enabled);
+        assert_eq!(c.frame.reprojection.samples, 1);
+        let e = base
+            .with_toml("[frame.reprojection]\nsampels = 4\n")
+            .unwrap_err();
+        assert!(e.contains("sampels"), "{e}");
+        assert!(base.with_toml("spp = ").is_err());
+    }
+
+    #[test]
+    fn the_realtime_preset_is_a_valid_configuration() {
+        let c = Config::realtime()
+            .with_toml(include_str!("../../../experiments/realtime.toml"))
+            .unwrap();
+        c.validate().unwrap();
+        assert!(c.frame.reprojection.enabled);
     }
 }

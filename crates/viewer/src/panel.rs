@@ -12,6 +12,9 @@ use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
 
 use crate::navigation::Mode;
+
+/// `experiments/realtime.toml`, compiled in.
+const REALTIME_PRESET: &str = include_str!("../../../experiments/realtime.toml");
 use crate::{Viewer, SHORTCUTS};
 
 pub fn show(v: &mut Viewer, ui: &mut egui::Ui) {
@@ -98,6 +101,16 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
             v.save_screenshot();
         }
     });
+    if ui
+        .button("Real-time preset")
+        .on_hover_text("experiments/realtime.toml: the best preset for a moving camera at 30 fps")
+        .clicked()
+    {
+        match v.config.with_toml(REALTIME_PRESET) {
+            Ok(c) => v.config = c,
+            Err(e) => v.message = format!("experiments/realtime.toml: {e}"),
+        }
+    }
 }
 
 fn display(v: &mut Viewer, ui: &mut egui::Ui) {

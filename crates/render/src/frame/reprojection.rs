@@ -62,12 +62,15 @@
 //! from the new samples. So a pixel on an edge converges to the right mix once a sample has
 //! seen the other side, instead of keeping the wrong one for the rest of the epoch.
 //!
-//! A state's point is *snapped* to where the camera ray through the centre of its pixel (or
-//! quadrant) meets the point's tangent plane, when it starts and each time it is carried.
-//! The first hit of a jittered sample lies anywhere in the pixel; projected as it is, the
-//! states of neighbouring pixels collide and leave holes even under a small rotation (on
-//! the Cornell box at 320x180, 5-degree steps: 10.7k of 57.6k states lost to collisions
-//! unsnapped, 1.9k snapped, the rest from the change of perspective).
+//! A state's point is *snapped*, when the state starts, to where the camera ray through the
+//! centre of its pixel (or quadrant) meets the first hit's tangent plane: the point that
+//! stands for the pixel's footprint. The first hit of a jittered sample lies anywhere in the
+//! pixel; projected as it is, the states of neighbouring pixels collide and leave holes even
+//! under a small rotation (on the Cornell box at 320x180, 5-degree steps: 10.7k of 57.6k
+//! states lost to collisions unsnapped, 1.9k snapped). Carried states keep their point
+//! exactly (snapping them again to the pixel they land in would drop the fraction of a
+//! pixel they moved at each step: under steps smaller than half a pixel they would never
+//! move).
 //!
 //! Two states that land on one target (a state per pixel, or per quadrant with 4): the one
 //! nearest the new camera wins (the thesis's related work, Adelson and Hodges), ties to the
@@ -609,17 +612,13 @@ impl Reprojection {
                             n += 1;
                             let j = (key & 0xffff_ffff) as usize;
                             *prob = prob.max(before[j / k]);
-                            let mut s = source[j];
-                            s.carried = true;
-                            // Re-centred on its new pixel, so that the next move maps the
-                            // states one to one again.
-                            let film = centre(t, w, q, k);
-                            s.point = if s.sky {
-                                to.primary_ray(film, Vec2::splat(0.5)).direction
-                            } else {
-                                snap(to, film, s.point, s.normal)
-                            };
-                            s
+                            // Its point stays where it is: re-centred on the pixel it
+                            // landed in, a state would lose the fraction of a pixel it
+                            // moved at every step, and under small steps never move.
+                            Slot {
+                                carried: true,
+                                ..source[j]
+                            }
                         };
                     }
                     let mark = marks[t].swap(0, Ordering::Relaxed);
