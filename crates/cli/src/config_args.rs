@@ -133,6 +133,11 @@ pub struct ConfigArgs {
     /// Reprojection: largest view-dependency error (Eq. 15) kept [default: 1/256].
     #[arg(long, value_name = "X")]
     pub max_error: Option<f32>,
+
+    /// Reprojection: after a move, a pixel holding fewer samples (a hole) takes the missing
+    /// ones at once [default: 0, off: one per frame as the thesis].
+    #[arg(long, value_name = "N")]
+    pub fresh_spp: Option<u32>,
 }
 
 fn parse_measure(s: &str) -> Result<Measure, String> {
@@ -289,6 +294,7 @@ impl ConfigArgs {
         reprojection.enabled |= self.reprojection;
         reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
         reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);
+        reprojection.fresh_spp = self.fresh_spp.unwrap_or(reprojection.fresh_spp);
         Ok(c)
     }
 }

@@ -310,7 +310,8 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
         pipeline.set_config(&to);
         let r = pipeline.render_frame(&world);
         let report = r.reprojection.expect("a move");
-        assert!(report.kept > report.states * 3 / 4, "{report:?}");
+        // At 48 x 36 a third of the Cornell box's pixels lie on an edge or next to one.
+        assert!(report.kept > report.states / 2, "{report:?}");
         assert_eq!(report.specular, 0);
 
         let plain = Config {
@@ -338,20 +339,16 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
         let reference: Vec<Vec3> = reference.pixels.iter().map(|p| p.mean).collect();
         let fresh: Vec<Vec3> = fresh.pixels.iter().map(|p| p.mean).collect();
         let image = pipeline.image();
-        // The pixels that kept (most of) their history.
-        // that do not straddle an edge in the new view: forward reprojection carries a
-        // state to the pixel its point lands in, and where that pixel's footprint covers
-        // another surface too, the state's colour is only part of the truth (module docs).
+        // The pixels that kept (most of) their history, edges of the new view included:
+        // a state that lands on a pixel whose footprint covers another surface too would
+        // bring only part of the truth, and must have been refused there (module docs).
         let edges = edges(&world, &world.camera(&plain), 48, 36);
-        let keep: Vec<bool> = pipeline
-            .history
-            .iter()
-            .zip(&edges)
-            .map(|(h, &edge)| h.n > frames / 2 && !edge)
-            .collect();
+        let keep: Vec<bool> = pipeline.history.iter().map(|h| h.n > frames / 2).collect();
+        let kept_edges = keep.iter().zip(&edges).filter(|(&k, &e)| k && e).count();
+        eprintln!("samples {samples}: {kept_edges} edge pixels kept their history");
         let kept = keep.iter().filter(|&&k| k).count();
         assert!(
-            kept > keep.len() * 3 / 5,
+            kept > keep.len() / 2,
             "{kept} of {} pixels kept",
             keep.len()
         );
@@ -367,6 +364,58 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
             "samples {samples}: MSE {carried:.3e} carried vs {fresh:.3e} fresh at {frames} spp"
         );
     }
+}
+
+#[test]
+fn fresh_spp_fills_the_holes_of_a_move_at_once() {
+    let world = cornell();
+    let path = views(
+        &world,
+        CameraPath {
+            path: PathKind::Translation,
+            offset: [0.2, 0.0, 0.0],
+            steps: 1,
+            ..CameraPath::default()
+        },
+    );
+    let frames = 16;
+    let pixels = 40 * 30;
+    let mut counts = Vec::new();
+    for fresh_spp in [0, 8] {
+        let mut cfg = with_view(&config(40, 30, 1), path[0].clone());
+        cfg.frame.reprojection.fresh_spp = fresh_spp;
+        let mut pipeline = warm(&world, &cfg, frames);
+        pipeline.set_config(&with_view(&cfg, path[1].clone()));
+        let report = pipeline.render_frame(&world);
+        let kept = pipeline.history.iter().filter(|h| h.n > frames / 2).count();
+        let holes = pipeline.history.iter().filter(|h| h.n <= 8).count();
+        assert!(
+            kept > pixels / 3 && holes > 20,
+            "{kept} kept, {holes} holes"
+        );
+        let n: Vec<u32> = pipeline.history.iter().map(|h| h.n).collect();
+        let next = pipeline.render_frame(&world);
+        let least = pipeline.history.iter().map(|h| h.n).min().unwrap();
+        if fresh_spp == 0 {
+            // The thesis: one sample per pixel per frame, holes included.
+            assert_eq!(n.iter().min(), Some(&1));
+            assert_eq!(report.samples, pixels as u64);
+            assert_eq!(next.samples, pixels as u64);
+        } else {
+            // Every hole took its 8 samples, the pixels with history one each. A pixel whose
+            // states the edge test refused after the frame's samples were chosen has one, and
+            // takes its 7 more at the next frame.
+            assert!(n.iter().all(|&n| n == 1 || n >= 8));
+            let lacking = n.iter().filter(|&&n| n == 1).count() as u64;
+            let taken: u64 = n.iter().map(|&n| if n <= 8 { n } else { 1 } as u64).sum();
+            assert_eq!(report.samples, taken);
+            assert_eq!(next.samples, pixels as u64 + 6 * lacking);
+            assert_eq!(least, 8);
+        }
+        counts.push(pipeline.render_frame(&world).samples);
+    }
+    // Then one sample everywhere again.
+    assert_eq!(counts, [pixels as u64; 2]);
 }
 
 #[test]

@@ -145,6 +145,8 @@ pub struct Pipeline {
     reset: Option<Reset>,
     /// This frame follows a reprojection: its accumulation runs the aliasing test.
     after_move: bool,
+    /// This epoch began with a reprojection (its pixels without history are holes).
+    carried: bool,
 }
 
 /// Why a frame starts a new epoch.
@@ -175,6 +177,7 @@ impl Pipeline {
             frame_number: 0,
             reset: Some(Reset::Settings),
             after_move: false,
+            carried: false,
         }
     }
 
@@ -261,6 +264,7 @@ impl Pipeline {
         self.history.resize(n, PixelStats::default());
         self.lighting.resize(n, LightSample::default());
         self.after_move = false;
+        self.carried = false;
         let frame = &self.config.frame;
         let mut report = None;
         if frame.adaptive.enabled || frame.reprojection.enabled {
@@ -285,6 +289,7 @@ impl Pipeline {
                         &mut self.adaptive.probability,
                     ));
                     self.after_move = true;
+                    self.carried = true;
                 }
                 None => {
                     self.history.fill(PixelStats::default());
@@ -364,13 +369,18 @@ impl Pipeline {
                         .after_move
                         .then_some((&self.reprojection, frame.reprojection.depth_tolerance)),
                     reprojection: frame.reprojection.enabled,
+                    spp,
+                    fresh: if self.carried {
+                        frame.reprojection.fresh_spp
+                    } else {
+                        0
+                    },
                 };
                 trace(
                     &mut self.gbuffer,
                     &mut self.lighting,
                     previous,
                     &tracer,
-                    spp,
                     &plan,
                 )
             } else {
@@ -381,8 +391,7 @@ impl Pipeline {
                     &mut self.lighting,
                     previous,
                     &tracer,
-                    spp,
-                    &Uniform(index),
+                    &Uniform(index, spp),
                 )
             };
             rays += r;
@@ -522,17 +531,17 @@ trait Plan: Sync {
     /// The first sample index of pixel `pixel` this frame; `None`: the pixel is not traced
     /// (its G-buffer pixel stays as it was, its lighting is empty).
     fn sample(&self, pixel: usize) -> Option<u32>;
-    /// After the primary pass filled G-buffer pixel `g`: whether the lighting pass samples
-    /// the pixel.
-    fn keep(&self, pixel: usize, g: &GPixel) -> bool;
+    /// After the primary pass filled G-buffer pixel `g`: how many samples the lighting pass
+    /// takes in the pixel (0: none).
+    fn keep(&self, pixel: usize, g: &GPixel) -> u32;
     /// The lighting pass measures the radiance along each pixel's first bounce.
     fn along_first_bounce(&self) -> bool {
         false
     }
 }
 
-/// The plain pipeline: every pixel, all from one sample index.
-struct Uniform(u32);
+/// The plain pipeline: every pixel, all from one sample index (`.0`), `.1` samples each.
+struct Uniform(u32, u32);
 
 impl Plan for Uniform {
     const EVERY_PIXEL: bool = true;
@@ -543,8 +552,8 @@ impl Plan for Uniform {
     }
 
     #[inline(always)]
-    fn keep(&self, _: usize, _: &GPixel) -> bool {
-        true
+    fn keep(&self, _: usize, _: &GPixel) -> u32 {
+        self.1
     }
 }
 
@@ -560,6 +569,11 @@ struct Planned<'a> {
     after_move: Option<(&'a Reprojection, f32)>,
     /// Forward reprojection is on: its states need the radiance along the first bounce.
     reprojection: bool,
+    /// Samples per pixel per frame.
+    spp: u32,
+    /// In an epoch that began with a reprojection: a pixel holding fewer samples takes the
+    /// missing ones at once (`fresh_spp`; 0: off).
+    fresh: u32,
 }
 
 impl Plan for Planned<'_> {
@@ -579,17 +593,27 @@ impl Plan for Planned<'_> {
     }
 
     #[inline]
-    fn keep(&self, pixel: usize, g: &GPixel) -> bool {
-        let (Some(s), Some((reprojection, tolerance))) = (&self.schedule, self.after_move) else {
-            return true;
+    fn keep(&self, pixel: usize, g: &GPixel) -> u32 {
+        let surviving = self
+            .after_move
+            .map(|(reprojection, tolerance)| reprojection.surviving(pixel, g, tolerance));
+        let h = surviving.as_ref().unwrap_or(&self.history[pixel]);
+        if h.n < self.fresh {
+            return (self.fresh - h.n).max(self.spp);
+        }
+        let (Some(s), Some(_)) = (&self.schedule, self.after_move) else {
+            return self.spp;
         };
-        let h = reprojection.surviving(pixel, g, tolerance);
         let p = if h.n == 0 {
             NO_PROBABILITY
         } else {
             self.probability[pixel]
         };
-        s.wants(pixel, &h, p)
+        if s.wants(pixel, h, p) {
+            self.spp
+        } else {
+            0
+        }
     }
 }
 
@@ -600,7 +624,6 @@ fn trace<P: Plan>(
     lighting: &mut [LightSample],
     previous: Option<&Camera>,
     tracer: &PathTracer,
-    spp: u32,
     plan: &P,
 ) -> (u64, f64, f64) {
     let w = gbuffer.width.max(1) as usize;
@@ -685,6 +708,7 @@ fn trace<P: Plan>(
                 let t1 = Instant::now();
                 if P::EVERY_PIXEL {
                     let index = plan.sample(start).unwrap_or(0);
+                    let spp = plan.keep(start, &gpixels[0]);
                     for ((l, hit), (x, y)) in lpixels.iter_mut().zip(hits.iter()).zip(pixels()) {
                         let (sample, r) =
                             lighting::lighting::<false>(tracer, x, y, hit, index, spp);
@@ -694,7 +718,8 @@ fn trace<P: Plan>(
                 } else {
                     let along = plan.along_first_bounce();
                     for (&(k, x, y, index), hit) in traced.iter().zip(hits.iter()) {
-                        lpixels[k] = if plan.keep(start + k, &gpixels[k]) {
+                        let spp = plan.keep(start + k, &gpixels[k]);
+                        lpixels[k] = if spp > 0 {
                             let (sample, r) = if along {
                                 lighting::lighting::<true>(tracer, x, y, hit, index, spp)
                             } else {

@@ -54,13 +54,30 @@
 //!    the points with a maximum distance it does not give; the plane distance accepts a
 //!    surface seen at a grazing angle, where the pixel's samples lie far apart on one plane;
 //!    the material separates coplanar surfaces such as a light in its ceiling). Sky states
-//!    need sky there, and surface states a surface.
+//!    need sky there, and surface states a surface. Beyond the thesis, the rays through the
+//!    8 neighbouring pixels must see the state's surface too: a state that lands next to
+//!    another surface lies on an edge of the new view, where its footprint's one surface is
+//!    not all the pixel sees (a light's rim above all: without this, translating the Cornell
+//!    box left the reprojected image worse than starting afresh). A pixel that adaptive
+//!    sampling leaves unsampled that frame keeps such a state until its next sample.
 //!
-//! Beyond the thesis, the same agreement test runs at every later frame on the state of the
-//! quadrant each new sample falls in: a carried state that a new sample disagrees with is
-//! dropped (its footprint's mix of surfaces was not this pixel's) and the state restarts
-//! from the new samples. So a pixel on an edge converges to the right mix once a sample has
-//! seen the other side, instead of keeping the wrong one for the rest of the epoch.
+//! Beyond the thesis, the same agreement test runs at every later frame: a carried state
+//! that a new sample of its pixel disagrees with is dropped (its footprint's mix of surfaces
+//! was not this pixel's), and a state started in this view that a sample of its quadrant
+//! disagrees with becomes mixed. So a pixel on an edge converges to the right mix once a
+//! sample has seen the other side, instead of keeping the wrong one for the rest of the
+//! epoch.
+//!
+//! Holes, and pixels whose states were all refused, start afresh; with `fresh_spp` (beyond
+//! the thesis, off by default) a pixel of an epoch that began with a move takes at once the
+//! samples it lacks up to `fresh_spp`, instead of one per frame: these pixels are few, but
+//! left at one sample they dominate the error of the reprojected image.
+//!
+//! With 4 states the pixel's history merges its states' samples, each sample weighing the
+//! same. Weighing the states' means equally (as strata) was tried and measured worse: a
+//! quarter holding one new sample beside three holding hundreds makes the pixel as noisy as
+//! a quarter of one sample, and the bias it removes, at pixels whose quarters see different
+//! surfaces, is gone with the states that land on an edge.
 //!
 //! A state's point is *snapped*, when the state starts, to where the camera ray through the
 //! centre of its pixel (or quadrant) meets the first hit's tangent plane: the point that
@@ -123,6 +140,11 @@ pub struct ReprojectionConfig {
     /// The aliasing depth test: largest distance of the new hit from the stored point's
     /// tangent plane, as a fraction of the new hit's depth.
     pub depth_tolerance: f32,
+    /// Beyond the thesis: after a move, a pixel holding fewer samples than this (a hole, or
+    /// a pixel whose states were refused) takes the missing ones in one frame instead of one
+    /// per frame, so that the pixels the move could not help do not stay the noisiest of
+    /// the image. 0 or 1: the thesis (one sample per frame like every pixel).
+    pub fresh_spp: u32,
 }
 
 impl Default for ReprojectionConfig {
@@ -134,6 +156,7 @@ impl Default for ReprojectionConfig {
             occlusion_rays: true,
             occlusion_tolerance: 1e-3,
             depth_tolerance: 0.02,
+            fresh_spp: 0,
         }
     }
 }
@@ -147,6 +170,13 @@ impl ReprojectionConfig {
                 "frame.reprojection.samples",
                 self.samples,
                 "1 or 4",
+            ));
+        }
+        if self.fresh_spp > MAX_FRESH_SPP {
+            return Err(ConfigError::new(
+                "frame.reprojection.fresh_spp",
+                self.fresh_spp,
+                format!("at most {MAX_FRESH_SPP}"),
             ));
         }
         if self.max_error.is_nan() || self.max_error < 0.0 {
@@ -170,6 +200,9 @@ impl ReprojectionConfig {
         Ok(())
     }
 }
+
+/// Largest `fresh_spp`.
+pub const MAX_FRESH_SPP: u32 = 256;
 
 /// One reprojection state: a share of a pixel's samples and what the checks need.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -438,14 +471,33 @@ fn quadrant(f: Vec2) -> usize {
     usize::from(f.x.fract() >= 0.5) + 2 * usize::from(f.y.fract() >= 0.5)
 }
 
-/// The history of a pixel: the merge of its states.
+/// The history of a pixel: the merge of its states' samples, each sample weighing the same
+/// (module docs).
 #[inline]
-fn merged(slots: &[Slot]) -> PixelStats {
+fn merged<'a>(slots: impl IntoIterator<Item = &'a Slot>) -> PixelStats {
     let mut h = PixelStats::default();
     for s in slots {
         h.merge(&s.stats);
     }
     h
+}
+
+/// Whether the new camera rays through the 8 neighbours of pixel `t` (of `pixels`, `w` wide)
+/// see `slot`'s surface too (the aliasing test's criterion). A state that lands on a pixel
+/// next to another surface in the new view lies on one of its edges, where its footprint's
+/// single surface is not all the pixel sees. (The diagonal neighbours count: a surface that
+/// covers only a corner of the pixel reaches the diagonal neighbour's ray first.)
+#[inline]
+fn inside(slot: &Slot, pixels: &[GPixel], t: usize, w: usize, tolerance: f32) -> bool {
+    let (x, y, h) = (
+        (t % w) as isize,
+        (t / w) as isize,
+        (pixels.len() / w) as isize,
+    );
+    (-1..=1)
+        .flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
+        .filter(|&(u, v)| (u, v) != (x, y) && u >= 0 && v >= 0 && u < w as isize && v < h)
+        .all(|(u, v)| slot.agrees(&pixels[v as usize * w + u as usize], tolerance))
 }
 
 impl Reprojection {
@@ -624,7 +676,7 @@ impl Reprojection {
                     let mark = marks[t].swap(0, Ordering::Relaxed);
                     *fate = if n > 0 { Fate::Kept as u8 } else { mark };
                     *kept = n;
-                    *h = merged(slots);
+                    *h = merged(slots.iter());
                     count += n as u64;
                 }
                 count
@@ -643,13 +695,11 @@ impl Reprojection {
     #[inline]
     pub fn surviving(&self, pixel: usize, g: &GPixel, tolerance: f32) -> PixelStats {
         let k = self.samples;
-        let mut h = PixelStats::default();
-        for s in &self.slots.current[pixel * k..pixel * k + k] {
-            if s.stats.n > 0 && s.agrees(g, tolerance) {
-                h.merge(&s.stats);
-            }
-        }
-        h
+        merged(
+            self.slots.current[pixel * k..pixel * k + k]
+                .iter()
+                .filter(|s| s.stats.n > 0 && s.agrees(g, tolerance)),
+        )
     }
 
     /// The fate of pixel `pixel` at the last move.
@@ -706,8 +756,17 @@ impl Reprojection {
                     slots.chunks_mut(k).zip(pixels).enumerate()
                 {
                     if after_move {
+                        let t = c * CHUNK + p;
                         for s in slots.iter_mut() {
-                            if s.stats.n > 0 && !s.agrees(g, tolerance) {
+                            if s.stats.n == 0 {
+                                continue;
+                            }
+                            let edge = !inside(s, &gbuffer.pixels, t, w, tolerance);
+                            if edge && l.stats.n == 0 {
+                                // Not sampled this frame (adaptive sampling): kept for now,
+                                // dropped by the pixel's next sample.
+                                s.mixed = true;
+                            } else if edge || !s.agrees(g, tolerance) {
                                 *s = Slot::default();
                                 dropped += 1;
                                 *kept -= 1;
@@ -724,15 +783,18 @@ impl Reprojection {
                         } else {
                             0
                         };
-                        let s = &mut slots[q];
-                        if s.stats.n > 0 && !s.agrees(g, tolerance) {
-                            if s.carried {
-                                // Its old footprint's surface is not all this one sees.
+                        // A carried state anywhere in the pixel that the sample disagrees
+                        // with: its old footprint's surface is not all this one sees (a
+                        // carried quarter's place in its new pixel is only approximate).
+                        for s in slots.iter_mut() {
+                            if s.carried && s.stats.n > 0 && (s.mixed || !s.agrees(g, tolerance)) {
                                 *s = Slot::default();
                                 dropped += 1;
-                            } else {
-                                s.mixed = true;
                             }
+                        }
+                        let s = &mut slots[q];
+                        if s.stats.n > 0 && !s.agrees(g, tolerance) {
+                            s.mixed = true;
                         }
                         if s.stats.n == 0 {
                             let film = centre(c * CHUNK + p, w, q, k);
@@ -745,7 +807,7 @@ impl Reprojection {
                         }
                         s.add(l);
                     }
-                    *h = merged(slots);
+                    *h = merged(slots.iter());
                 }
                 dropped
             })
