@@ -259,3 +259,45 @@ fn every_display_mode_shows_the_box() {
     assert!(left[0] > 2 * left[1], "left wall {left:?}");
     assert!(2 * right[1] > 3 * right[0], "right wall {right:?}");
 }
+
+/// Adaptive sampling's `skip_empty`: the schedule's iterations that sample no pixel cost no
+/// frame, and the frames that remain are exactly those of the schedule without skipping
+/// (same pixels, same samples, same probabilities), minus the empty ones.
+#[test]
+fn skipping_empty_iterations_keeps_the_schedules_decisions() {
+    use pathlight_render::frame::adaptive::{AdaptiveConfig, Measure};
+    let world = cornell();
+    let run = |skip_empty: bool, frames: u32| {
+        let cfg = Config {
+            max_bounces: Some(2),
+            frame: FrameConfig {
+                adaptive: AdaptiveConfig {
+                    enabled: true,
+                    min_spp: 4,
+                    max_spp: 32,
+                    // Display-scaled V: small everywhere, so the threshold starts far above it.
+                    measure: Measure::Tonemapped,
+                    skip_empty,
+                    ..AdaptiveConfig::default()
+                },
+                ..FrameConfig::default()
+            },
+            ..config()
+        };
+        let mut pipeline = Pipeline::new(cfg);
+        let samples: Vec<u64> = (0..frames)
+            .map(|_| pipeline.render_frame(&world).samples)
+            .collect();
+        (samples, pipeline)
+    };
+    let frames = 48;
+    let (all, plain) = run(false, frames);
+    let empty = all.iter().filter(|&&n| n == 0).count() as u32;
+    assert!(empty >= 4, "{all:?}");
+    let (busy, skipped) = run(true, frames - empty);
+    assert!(busy.iter().all(|&n| n > 0), "{busy:?}");
+    let nonempty: Vec<u64> = all.iter().copied().filter(|&n| n > 0).collect();
+    assert_eq!(busy, nonempty);
+    assert_eq!(skipped.history, plain.history);
+    assert_eq!(skipped.adaptive.probability, plain.adaptive.probability);
+}

@@ -6,7 +6,7 @@ use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
-use pathlight_render::frame::reprojection::Fate;
+use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
 use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY, REPROJECT};
 use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
@@ -223,6 +223,10 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
             egui::Slider::new(&mut r.depth_tolerance, 1e-3..=0.5)
                 .logarithmic(true)
                 .text("aliasing depth tolerance"),
+        );
+        ui.add(
+            egui::Slider::new(&mut r.fresh_spp, 0..=MAX_FRESH_SPP)
+                .text("samples a hole takes at once (0: one per frame)"),
         );
     });
     ui.separator();

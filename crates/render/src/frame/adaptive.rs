@@ -65,6 +65,9 @@ pub struct AdaptiveConfig {
     /// `max_spp` samples already takes no more, and a pixel keeps the probability it brought
     /// from the previous view instead of one recomputed from an inflated sample count.
     pub cap: bool,
+    /// Beyond the thesis: an iteration of the schedule in which no pixel would take a sample
+    /// is skipped instead of spending a frame on it (the same decisions, fewer frames).
+    pub skip_empty: bool,
 }
 
 impl Default for AdaptiveConfig {
@@ -75,6 +78,7 @@ impl Default for AdaptiveConfig {
             max_spp: 32,
             measure: Measure::Luminance,
             cap: false,
+            skip_empty: true,
         }
     }
 }
@@ -166,6 +170,8 @@ pub fn threshold(iteration: u32, min_spp: u32, max_spp: u32) -> f32 {
 #[derive(Debug, Clone, Default)]
 pub struct Adaptive {
     pub probability: Vec<f32>,
+    /// The iteration of the schedule the next frame runs (0 at every reset).
+    pub iteration: u32,
 }
 
 /// One iteration's decisions: which pixels are sampled.
@@ -224,6 +230,46 @@ impl Adaptive {
     pub fn reset(&mut self, pixels: usize) {
         self.probability.clear();
         self.probability.resize(pixels, NO_PROBABILITY);
+        self.iteration = 0;
+    }
+
+    /// The first iteration from `self.iteration` on in which some pixel of `history` takes a
+    /// sample ([`AdaptiveConfig::skip_empty`]; `max_spp` when none does before the
+    /// probabilities are fixed). An iteration before `max_spp` is empty when every pixel that
+    /// may still be sampled has `min_spp` samples and the threshold `tau` is above the largest
+    /// `V` among them (or, in the combination, when every pixel waits with its probability).
+    /// Pixels do not change between skipped iterations, so the decisions are the thesis's.
+    pub fn first_busy(
+        &self,
+        config: &AdaptiveConfig,
+        history: &[PixelStats],
+        combination: bool,
+    ) -> u32 {
+        use rayon::prelude::*;
+        let (min, max) = (config.min_spp, config.max_spp);
+        let i = self.iteration;
+        if i >= max {
+            return i;
+        }
+        // The largest V among the pixels the threshold decides (infinite: a pixel below
+        // min_spp, sampled whatever the threshold).
+        let largest = history
+            .par_iter()
+            .zip(self.probability.par_iter())
+            .map(|(h, &p)| {
+                let waits = combination && p != NO_PROBABILITY;
+                if waits || (config.cap && h.n >= max) {
+                    f32::NEG_INFINITY
+                } else if h.n < min {
+                    f32::INFINITY
+                } else {
+                    deviation(h, config.measure)
+                }
+            })
+            .reduce(|| f32::NEG_INFINITY, f32::max);
+        (i..max)
+            .find(|&j| threshold(j, min, max) <= largest)
+            .unwrap_or(max)
     }
 
     /// The end of iteration `max_spp - 1`: every pixel's probability becomes

@@ -249,6 +249,7 @@ impl Pipeline {
             self.epoch += 1;
         }
         self.frames = 0;
+        self.adaptive.iteration = 0;
         let mut c = self.config.clone();
         if self.epoch > 0 {
             c.seed = hash(&[self.config.seed, self.epoch]);
@@ -352,10 +353,22 @@ impl Pipeline {
             let t = Instant::now();
             let previous = self.previous_camera.as_ref();
             let (r, primary_s, lighting_s) = if techniques {
+                let a = &frame.adaptive;
+                if a.enabled && a.skip_empty {
+                    let busy =
+                        self.adaptive
+                            .first_busy(a, &self.history, frame.reprojection.enabled);
+                    if busy == a.max_spp && self.adaptive.iteration < a.max_spp {
+                        // The rest of the schedule would sample nothing: its end now.
+                        self.adaptive
+                            .fix_probabilities(&self.history, a.max_spp, a.cap);
+                    }
+                    self.adaptive.iteration = busy;
+                }
                 let schedule = frame.adaptive.enabled.then(|| {
                     Schedule::new(
                         &frame.adaptive,
-                        self.frames,
+                        self.adaptive.iteration,
                         frame.reprojection.enabled,
                         self.epoch_config.seed,
                     )
@@ -431,10 +444,11 @@ impl Pipeline {
                         .for_each(|(h, l)| h.merge(&l.stats));
                 }
                 let a = &frame.adaptive;
-                if a.enabled && self.frames + 1 == a.max_spp {
+                if a.enabled && self.adaptive.iteration + 1 == a.max_spp {
                     self.adaptive
                         .fix_probabilities(&self.history, a.max_spp, a.cap);
                 }
+                self.adaptive.iteration = self.adaptive.iteration.saturating_add(1);
             } else {
                 let first = self.frames == 0;
                 self.history
