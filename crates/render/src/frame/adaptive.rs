@@ -19,6 +19,13 @@
 //! iteration, so independent of threads) is below `P`, until the next reset. With
 //! `min_spp > 0` every pixel keeps a positive probability, so the image still converges.
 //!
+//! Beyond the thesis, [`AdaptiveConfig::skip_empty`] (on by default): an iteration in which
+//! no pixel would take a sample (the threshold still above every pixel's `V`) costs no frame;
+//! the next frame runs the first iteration that samples something. The decisions, samples and
+//! probabilities are the thesis's (`skipping_empty_iterations_keeps_the_schedules_decisions`
+//! in `tests/pipeline.rs`); only the frames that would trace nothing are gone. (With the
+//! tone-mapped `V`, which is small everywhere, most of the schedule was such frames.)
+//!
 //! With forward reprojection on as well, the pipeline runs the thesis's combination
 //! (Algorithm 2): reprojected pixels bring their samples, statistics and probability; after a
 //! camera move the schedule restarts, and pixels that already have a probability take no
@@ -26,7 +33,8 @@
 //! sample count. The thesis's known flaw follows: a reprojected pixel that had no probability
 //! yet can go past `max_spp` samples (and so gets a probability above 1). [`AdaptiveConfig::cap`]
 //! is the fix: no schedule samples for a pixel that has `max_spp` already, and pixels keep a
-//! probability they brought.
+//! probability they brought. The frame that fixes the probabilities reports how many ended
+//! above 1 ([`FrameReport::probability_above_one`](super::FrameReport)).
 //!
 //! Passes: this module has no pass of its own. Its decision ([`Schedule::wants`]) is read by
 //! the primary and lighting passes (which pixels are traced), and the accumulation pass fixes
@@ -274,19 +282,21 @@ impl Adaptive {
 
     /// The end of iteration `max_spp - 1`: every pixel's probability becomes
     /// `spp / max_spp` (Algorithm 1 and 2). With `cap`, a pixel keeps a probability it has
-    /// and counts at most `max_spp` samples.
-    pub fn fix_probabilities(&mut self, history: &[PixelStats], max_spp: u32, cap: bool) {
+    /// and counts at most `max_spp` samples. Returns the pixels whose probability is above 1
+    /// (the combination's flaw: they hold more than `max_spp` samples; none with `cap`).
+    pub fn fix_probabilities(&mut self, history: &[PixelStats], max_spp: u32, cap: bool) -> u64 {
         use rayon::prelude::*;
         self.probability
             .par_iter_mut()
             .zip(history.par_iter())
-            .for_each(|(p, h)| {
-                if cap && *p != NO_PROBABILITY {
-                    return;
+            .map(|(p, h)| {
+                if !(cap && *p != NO_PROBABILITY) {
+                    let n = if cap { h.n.min(max_spp) } else { h.n };
+                    *p = n as f32 / max_spp as f32;
                 }
-                let n = if cap { h.n.min(max_spp) } else { h.n };
-                *p = n as f32 / max_spp as f32;
-            });
+                u64::from(*p > 1.0)
+            })
+            .sum()
     }
 }
 

@@ -106,6 +106,11 @@ pub struct FrameReport {
     /// Adaptive sampling's threshold this frame (`None` off, or past the schedule).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tau: Option<f32>,
+    /// On the frame that fixed adaptive sampling's probabilities: the pixels whose
+    /// probability is above 1 (the combination's flaw, Algorithm 2: they went past
+    /// `max_spp`; none with `cap`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub probability_above_one: Option<u64>,
 }
 
 impl FrameReport {
@@ -335,6 +340,7 @@ impl Pipeline {
         let mut rays = 0;
         let mut samples = 0;
         let mut tau = None;
+        let mut above_one = None;
         let frame = &self.config.frame;
         let techniques = frame.adaptive.enabled || frame.reprojection.enabled;
         if traced {
@@ -360,8 +366,11 @@ impl Pipeline {
                             .first_busy(a, &self.history, frame.reprojection.enabled);
                     if busy == a.max_spp && self.adaptive.iteration < a.max_spp {
                         // The rest of the schedule would sample nothing: its end now.
-                        self.adaptive
-                            .fix_probabilities(&self.history, a.max_spp, a.cap);
+                        above_one = Some(self.adaptive.fix_probabilities(
+                            &self.history,
+                            a.max_spp,
+                            a.cap,
+                        ));
                     }
                     self.adaptive.iteration = busy;
                 }
@@ -445,8 +454,11 @@ impl Pipeline {
                 }
                 let a = &frame.adaptive;
                 if a.enabled && self.adaptive.iteration + 1 == a.max_spp {
-                    self.adaptive
-                        .fix_probabilities(&self.history, a.max_spp, a.cap);
+                    above_one = Some(self.adaptive.fix_probabilities(
+                        &self.history,
+                        a.max_spp,
+                        a.cap,
+                    ));
                 }
                 self.adaptive.iteration = self.adaptive.iteration.saturating_add(1);
             } else {
@@ -490,6 +502,7 @@ impl Pipeline {
             rays,
             reprojection,
             tau,
+            probability_above_one: above_one,
         }
     }
 
