@@ -34,7 +34,10 @@
 //! yet can go past `max_spp` samples (and so gets a probability above 1). [`AdaptiveConfig::cap`]
 //! is the fix: no schedule samples for a pixel that has `max_spp` already, and pixels keep a
 //! probability they brought. The frame that fixes the probabilities reports how many ended
-//! above 1 ([`FrameReport::probability_above_one`](super::FrameReport)).
+//! above 1 ([`FrameReport::probability_above_one`](super::FrameReport)). Beyond the thesis,
+//! [`AdaptiveConfig::keep_sampling`] (off by default): the reprojected pixels do not wait for
+//! iteration `max_spp` but keep being sampled with the probability they brought (while they
+//! wait, one schedule of 32 frames, they are the only pixels that do not improve).
 //!
 //! Passes: this module has no pass of its own. Its decision ([`Schedule::wants`]) is read by
 //! the primary and lighting passes (which pixels are traced), and the accumulation pass fixes
@@ -76,6 +79,10 @@ pub struct AdaptiveConfig {
     /// Beyond the thesis: an iteration of the schedule in which no pixel would take a sample
     /// is skipped instead of spending a frame on it (the same decisions, fewer frames).
     pub skip_empty: bool,
+    /// Beyond the thesis, for the combination: during the schedule after a move, a
+    /// reprojected pixel keeps being sampled with the probability it brought, instead of
+    /// waiting for iteration `max_spp` (Algorithm 2) while only the new pixels are sampled.
+    pub keep_sampling: bool,
 }
 
 impl Default for AdaptiveConfig {
@@ -87,6 +94,7 @@ impl Default for AdaptiveConfig {
             measure: Measure::Luminance,
             cap: false,
             skip_empty: true,
+            keep_sampling: false,
         }
     }
 }
@@ -193,6 +201,8 @@ pub struct Schedule {
     /// Algorithm 2: pixels with a probability wait for the probability phase.
     pub combination: bool,
     pub cap: bool,
+    /// [`AdaptiveConfig::keep_sampling`].
+    pub keep_sampling: bool,
     /// Seeds the probability phase's random numbers (the epoch's seed).
     pub seed: u64,
 }
@@ -207,6 +217,7 @@ impl Schedule {
             measure: config.measure,
             combination,
             cap: config.cap,
+            keep_sampling: config.keep_sampling,
             seed,
         }
     }
@@ -215,16 +226,19 @@ impl Schedule {
     /// sample in this iteration.
     #[inline]
     pub fn wants(&self, pixel: usize, stats: &PixelStats, probability: f32) -> bool {
+        let draw = || {
+            let u = unit_f32(hash(&[self.seed, pixel as u64, self.iteration as u64]) as u32);
+            u < probability
+        };
         if self.iteration >= self.max_spp {
             if probability == NO_PROBABILITY {
                 // Only when adaptive sampling was switched on past the schedule's end.
                 return true;
             }
-            let u = unit_f32(hash(&[self.seed, pixel as u64, self.iteration as u64]) as u32);
-            return u < probability;
+            return draw();
         }
         if self.combination && probability != NO_PROBABILITY {
-            return false;
+            return self.keep_sampling && draw();
         }
         if self.cap && stats.n >= self.max_spp {
             return false;
@@ -265,8 +279,11 @@ impl Adaptive {
             .par_iter()
             .zip(self.probability.par_iter())
             .map(|(h, &p)| {
-                let waits = combination && p != NO_PROBABILITY;
-                if waits || (config.cap && h.n >= max) {
+                let carried = combination && p != NO_PROBABILITY;
+                if carried && config.keep_sampling {
+                    // Sampled at random with its probability: (almost) never empty.
+                    f32::INFINITY
+                } else if carried || (config.cap && h.n >= max) {
                     f32::NEG_INFINITY
                 } else if h.n < min {
                     f32::INFINITY
@@ -489,6 +506,36 @@ mod tests {
         let (counts, probability) = run(&vs, &config, 2000);
         assert!(probability.iter().all(|&p| p >= 2.0 / 16.0));
         assert!(counts.iter().all(|&c| c > 100), "{counts:?}");
+    }
+
+    #[test]
+    fn reprojected_pixels_wait_or_keep_sampling_with_their_probability() {
+        // Algorithm 2: during the schedule a pixel that brought a probability takes nothing;
+        // with `keep_sampling` it takes a sample with that probability at each iteration.
+        let stats = PixelStats::one(Vec3::ONE, Vec3::ZERO);
+        for keep_sampling in [false, true] {
+            let config = AdaptiveConfig {
+                enabled: true,
+                keep_sampling,
+                ..AdaptiveConfig::default()
+            };
+            let (pixels, p) = (20_000, 0.3);
+            let taken = (0..pixels)
+                .filter(|&i| {
+                    let s = Schedule::new(&config, 1 + i as u32 % 30, true, 9);
+                    s.wants(i, &stats, p)
+                })
+                .count() as f64;
+            if keep_sampling {
+                let sd = (pixels as f64 * p as f64 * (1.0 - p as f64)).sqrt();
+                assert!(
+                    (taken - pixels as f64 * p as f64).abs() < 4.0 * sd,
+                    "{taken}"
+                );
+            } else {
+                assert_eq!(taken, 0.0);
+            }
+        }
     }
 
     #[test]
