@@ -482,22 +482,21 @@ fn merged<'a>(slots: impl IntoIterator<Item = &'a Slot>) -> PixelStats {
     h
 }
 
-/// Whether the new camera rays through the 8 neighbours of pixel `t` (of `pixels`, `w` wide)
-/// see `slot`'s surface too (the aliasing test's criterion). A state that lands on a pixel
-/// next to another surface in the new view lies on one of its edges, where its footprint's
-/// single surface is not all the pixel sees. (The diagonal neighbours count: a surface that
-/// covers only a corner of the pixel reaches the diagonal neighbour's ray first.)
+/// Whether the new camera rays through pixel `t` and its 8 neighbours (of `pixels`, `w`
+/// wide) all see `slot`'s surface (the aliasing test's criterion). A state that lands on a
+/// pixel next to another surface in the new view lies on one of its edges, where its
+/// footprint's single surface is not all the pixel sees. (The diagonal neighbours count: a
+/// surface that covers only a corner of the pixel reaches the diagonal neighbour's ray first.)
 #[inline]
 fn inside(slot: &Slot, pixels: &[GPixel], t: usize, w: usize, tolerance: f32) -> bool {
-    let (x, y, h) = (
-        (t % w) as isize,
-        (t / w) as isize,
-        (pixels.len() / w) as isize,
-    );
-    (-1..=1)
-        .flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
-        .filter(|&(u, v)| (u, v) != (x, y) && u >= 0 && v >= 0 && u < w as isize && v < h)
-        .all(|(u, v)| slot.agrees(&pixels[v as usize * w + u as usize], tolerance))
+    let rows = pixels.len() / w;
+    let (x, y) = (t % w, t / w);
+    let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
+    (y.saturating_sub(1)..=(y + 1).min(rows - 1)).all(|v| {
+        pixels[v * w + x0..=v * w + x1]
+            .iter()
+            .all(|g| slot.agrees(g, tolerance))
+    })
 }
 
 impl Reprojection {
@@ -761,12 +760,13 @@ impl Reprojection {
                             if s.stats.n == 0 {
                                 continue;
                             }
-                            let edge = !inside(s, &gbuffer.pixels, t, w, tolerance);
+                            let seen = s.agrees(g, tolerance);
+                            let edge = seen && !inside(s, &gbuffer.pixels, t, w, tolerance);
                             if edge && l.stats.n == 0 {
                                 // Not sampled this frame (adaptive sampling): kept for now,
                                 // dropped by the pixel's next sample.
                                 s.mixed = true;
-                            } else if edge || !s.agrees(g, tolerance) {
+                            } else if edge || !seen {
                                 *s = Slot::default();
                                 dropped += 1;
                                 *kept -= 1;
