@@ -621,6 +621,9 @@ impl Plan for Planned<'_> {
 
     #[inline]
     fn keep(&self, pixel: usize, g: &GPixel) -> u32 {
+        if self.fresh == 0 && (self.schedule.is_none() || self.after_move.is_none()) {
+            return self.spp;
+        }
         let surviving = self
             .after_move
             .map(|(reprojection, tolerance)| reprojection.surviving(pixel, g, tolerance));
