@@ -2,7 +2,7 @@
 //! progress bar and writes `results.json`, plots, images and `report.html` into DIR. Ctrl-C
 //! stops it, keeping the reference's checkpoint and writing what was measured.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use anyhow::{bail, Result};
@@ -39,10 +39,64 @@ pub struct EvalArgs {
     /// Print one JSON object with the output paths and the slopes as the last line.
     #[arg(long)]
     pub json: bool,
+
+    /// With `[[scenes]]`: run only these entries (repeat, or separate with commas); each
+    /// writes into DIR/NAME.
+    #[arg(long, value_name = "NAME", value_delimiter = ',')]
+    pub only: Vec<String>,
 }
 
 pub fn run(args: &EvalArgs) -> Result<()> {
     let spec = Spec::load(&args.spec)?;
+    let entries = spec
+        .entries()
+        .map_err(|m| anyhow::anyhow!("{}: {m}", args.spec.display()))?;
+    for name in &args.only {
+        if !entries
+            .iter()
+            .any(|(n, _)| n.as_deref() == Some(name.as_str()))
+        {
+            let known: Vec<&str> = entries.iter().filter_map(|(n, _)| n.as_deref()).collect();
+            bail!(
+                "{}: --only {name:?}: no such [[scenes]] entry (there are: {})",
+                args.spec.display(),
+                if known.is_empty() {
+                    "none".to_owned()
+                } else {
+                    known.join(", ")
+                }
+            );
+        }
+    }
+    let mut runs = Vec::new();
+    for (name, spec) in &entries {
+        if !args.only.is_empty() && !args.only.contains(name.as_ref().expect("named")) {
+            continue;
+        }
+        let out = match name {
+            Some(n) => args.out.join(n),
+            None => args.out.clone(),
+        };
+        let json = run_one(args, spec, &out)?;
+        runs.push((name.clone(), out, json));
+    }
+    if args.json {
+        let json = match runs.as_slice() {
+            [(None, _, one)] => one.clone(),
+            _ => serde_json::json!({
+                "entries": runs
+                    .iter()
+                    .map(|(n, _, j)| serde_json::json!({"name": n, "result": j}))
+                    .collect::<Vec<_>>(),
+            }),
+        };
+        println!("{json}");
+    }
+    Ok(())
+}
+
+/// Runs one experiment of the spec into `out`; its JSON summary.
+fn run_one(args: &EvalArgs, spec: &Spec, out: &Path) -> Result<serde_json::Value> {
     let pool = thread_pool(args.threads)?;
     let cancel = ctrl_c_flag();
     let bar = progress_bar(
@@ -62,7 +116,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         bar.set_position(p.done);
     };
     let runner = Runner {
-        spec: &spec,
+        spec,
         spec_dir: spec_dir(&args.spec),
         cache: ReferenceCache::new(&args.cache),
         progress: &progress,
@@ -70,12 +124,12 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     };
     let outcome = pool.install(|| runner.run())?;
     bar.finish_and_clear();
-    let report = publish(&outcome, &args.out)?;
+    let report = publish(&outcome, out)?;
     let results = &outcome.results;
     if !results.complete {
         bail!(
             "stopped: what was measured is in {} (a reference in progress continues from its checkpoint in {} next time)",
-            args.out.display(),
+            out.display(),
             args.cache.display()
         );
     }
@@ -91,15 +145,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             s.configuration, s.metric, s.against, s.slope
         );
     }
-    if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "results": args.out.join("results.json"),
-                "report": report,
-                "slopes": results.slopes,
-            })
-        );
-    }
-    Ok(())
+    Ok(serde_json::json!({
+        "results": out.join("results.json"),
+        "report": report,
+        "slopes": results.slopes,
+    }))
 }

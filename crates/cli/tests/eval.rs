@@ -102,3 +102,76 @@ fn bad_specs_are_refused_naming_the_file() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `[[scenes]]`: one spec, two camera setups of the Cornell box; each entry writes its own
+/// folder, `--only` runs a subset, and an unknown name is refused naming the spec.
+#[test]
+fn scenes_run_each_entry_into_its_folder() {
+    let dir = temp_dir("scenes");
+    let spec = dir.join("two.toml");
+    std::fs::write(
+        &spec,
+        r#"
+name = "two"
+width = 16
+height = 12
+[budget]
+spp = [1, 2]
+[reference]
+spp = 8
+[[configuration]]
+name = "plain"
+[[scenes]]
+name = "front"
+[[scenes]]
+name = "turned"
+width = 12
+[scenes.camera]
+path = "rotation"
+degrees = 10.0
+step_degrees = 5.0
+frames_per_view = 2
+"#,
+    )
+    .unwrap();
+    let cache = dir.join("cache");
+    let run = |extra: &[&str], out: &Path| {
+        let mut a = vec![
+            "eval",
+            s(&spec),
+            "--out",
+            s(out),
+            "--cache",
+            s(&cache),
+            "--json",
+        ];
+        a.extend_from_slice(extra);
+        pathlight(&a)
+    };
+    let all = dir.join("all");
+    let out = run(&[], &all);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary: serde_json::Value =
+        serde_json::from_str(stdout(&out).lines().last().unwrap()).unwrap();
+    assert_eq!(summary["entries"].as_array().unwrap().len(), 2);
+    for (name, width) in [("front", 16), ("turned", 12)] {
+        let results: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(all.join(name).join("results.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(results["spec"]["name"], format!("two/{name}"));
+        assert_eq!(results["spec"]["width"], width);
+        assert!(all.join(name).join("report.html").exists());
+    }
+
+    let some = dir.join("some");
+    let out = run(&["--only", "turned"], &some);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(some.join("turned/results.json").exists());
+    assert!(!some.join("front").exists());
+
+    let out = run(&["--only", "sideways"], &dir.join("none"));
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("two.toml") && e.contains("sideways"), "{e}");
+}

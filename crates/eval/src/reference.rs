@@ -99,12 +99,18 @@ impl ReferenceCache {
         Self { dir: dir.into() }
     }
 
-    /// The key of a reference of `scene` rendered with `config` (camera included).
+    /// The key of a reference of `scene` rendered with `config` (camera included). The
+    /// real-time pipeline's settings (`config.frame`) do not count: the reference path tracer
+    /// never reads them, and a new technique's switches must not invalidate every reference.
     pub fn key(scene: &SceneIdentity, config: &Config) -> String {
+        let traced = Config {
+            frame: Default::default(),
+            ..config.clone()
+        };
         let mut h = Sha256::new();
         h.update(RENDERER_VERSION.as_bytes());
         h.update(scene.digest);
-        h.update(serde_json::to_vec(config).expect("a Config serialises"));
+        h.update(serde_json::to_vec(&traced).expect("a Config serialises"));
         h.finalize()[..16]
             .iter()
             .map(|b| format!("{b:02x}"))
@@ -228,4 +234,31 @@ pub fn expected_mse(film: &Film) -> f64 {
         })
         .sum();
     sum / (3.0 * film.pixels.len().max(1) as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_ignore_the_frame_pipeline_but_not_what_is_traced() {
+        let scene = SceneIdentity::new(None, None, "", "counts").unwrap();
+        let base = Config::default();
+        let mut frame = base.clone();
+        frame.frame.reprojection.enabled = true;
+        frame.frame.adaptive.max_spp = 7;
+        frame.frame.accumulate = false;
+        assert_eq!(
+            ReferenceCache::key(&scene, &base),
+            ReferenceCache::key(&scene, &frame)
+        );
+        let bounces = Config {
+            max_bounces: Some(3),
+            ..base.clone()
+        };
+        assert_ne!(
+            ReferenceCache::key(&scene, &base),
+            ReferenceCache::key(&scene, &bounces)
+        );
+    }
 }

@@ -19,6 +19,7 @@ const MAX_CONFIGURATIONS: usize = 64;
 const MAX_REPETITIONS: u32 = 1000;
 const MAX_BUDGETS: usize = 64;
 const MAX_TIME_MS: f64 = 3_600_000.0;
+const MAX_SCENES: usize = 256;
 
 /// One experiment.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -60,6 +61,37 @@ pub struct Spec {
     pub reference: ReferenceSpec,
     #[serde(rename = "configuration")]
     pub configurations: Vec<Configuration>,
+    /// Several scenes or camera setups in one experiment: each entry runs the whole
+    /// experiment with the fields it sets in place of the spec's (see [`Spec::entries`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scenes: Vec<SceneEntry>,
+}
+
+/// One entry of `[[scenes]]`: a name, and the scene and camera fields it replaces.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneEntry {
+    /// Names its output folder and its results: letters, digits, `-`, `_` and `.`.
+    pub name: String,
+    #[serde(default)]
+    pub scene: Option<PathBuf>,
+    #[serde(default)]
+    pub environment: Option<PathBuf>,
+    #[serde(default)]
+    pub environment_rotation: Option<f32>,
+    #[serde(default)]
+    pub environment_intensity: Option<f32>,
+    #[serde(default)]
+    pub point_lights: Option<usize>,
+    #[serde(default)]
+    pub width: Option<u32>,
+    #[serde(default)]
+    pub height: Option<u32>,
+    #[serde(default)]
+    pub camera: Option<CameraPath>,
+    /// The reference's samples per pixel (`[reference] spp`).
+    #[serde(default)]
+    pub reference_spp: Option<u32>,
 }
 
 fn one_f32() -> f32 {
@@ -165,11 +197,72 @@ impl Spec {
         Self::parse(&text).map_err(error)
     }
 
-    /// Parses and checks a spec's text.
+    /// Parses and checks a spec's text (each of its `[[scenes]]` entries too).
     pub fn parse(text: &str) -> Result<Self, String> {
         let spec: Spec = toml::from_str(text).map_err(|e| e.to_string())?;
-        spec.validate()?;
+        if spec.scenes.is_empty() {
+            spec.validate()?;
+        } else {
+            spec.entries()?;
+        }
         Ok(spec)
+    }
+
+    /// The experiments this spec runs: itself (unnamed) without `[[scenes]]`; else one per
+    /// entry, named after it, with the fields the entry sets in place of the spec's (each
+    /// field it leaves out is the spec's). Each is checked.
+    pub fn entries(&self) -> Result<Vec<(Option<String>, Spec)>, String> {
+        if self.scenes.is_empty() {
+            return Ok(vec![(None, self.clone())]);
+        }
+        if self.scenes.len() > MAX_SCENES {
+            return Err(format!(
+                "{} [[scenes]]: at most {MAX_SCENES}",
+                self.scenes.len()
+            ));
+        }
+        let mut names = std::collections::HashSet::new();
+        let mut out = Vec::with_capacity(self.scenes.len());
+        for e in &self.scenes {
+            let safe = !e.name.is_empty()
+                && e.name.len() <= 64
+                && !e.name.starts_with('.')
+                && e.name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
+            if !safe {
+                return Err(format!(
+                    "[[scenes]] name {:?}: 1 to 64 letters, digits, '-', '_' or '.', not starting with '.'",
+                    e.name
+                ));
+            }
+            if !names.insert(e.name.as_str()) {
+                return Err(format!("[[scenes]] name {:?}: used twice", e.name));
+            }
+            let spec = Spec {
+                name: format!("{}/{}", self.name, e.name),
+                scene: e.scene.clone().or_else(|| self.scene.clone()),
+                environment: e.environment.clone().or_else(|| self.environment.clone()),
+                environment_rotation: e.environment_rotation.unwrap_or(self.environment_rotation),
+                environment_intensity: e
+                    .environment_intensity
+                    .unwrap_or(self.environment_intensity),
+                point_lights: e.point_lights.unwrap_or(self.point_lights),
+                width: e.width.unwrap_or(self.width),
+                height: e.height.unwrap_or(self.height),
+                camera: e.camera.clone().unwrap_or_else(|| self.camera.clone()),
+                reference: ReferenceSpec {
+                    spp: e.reference_spp.unwrap_or(self.reference.spp),
+                    ..self.reference.clone()
+                },
+                scenes: Vec::new(),
+                ..self.clone()
+            };
+            spec.validate()
+                .map_err(|m| format!("[[scenes]] {:?}: {m}", e.name))?;
+            out.push((Some(e.name.clone()), spec));
+        }
+        Ok(out)
     }
 
     /// Checks every count and range, and that each configuration's settings are valid.
@@ -318,6 +411,52 @@ mod tests {
         [[configuration]]
         name = "a"
     "#;
+
+    #[test]
+    fn scenes_entries_take_the_specs_fields_they_leave_out() {
+        // (Top-level fields go before MINIMAL's [[configuration]], which would take them.)
+        let text = format!(
+            "point_lights = 3\n{MINIMAL}\n[[scenes]]\nname = \"a\"\n[[scenes]]\nname = \"b-2.x\"\nscene = \"room.glb\"\nwidth = 4\n[scenes.camera]\npath = \"orbit\"\n"
+        );
+        let spec = Spec::parse(&text).unwrap();
+        let entries = spec.entries().unwrap();
+        assert_eq!(entries.len(), 2);
+        let (a, b) = (&entries[0], &entries[1]);
+        assert_eq!(a.0.as_deref(), Some("a"));
+        assert_eq!(a.1.name, "t/a");
+        assert_eq!(
+            (a.1.width, a.1.scene.clone(), a.1.point_lights),
+            (8, None, 3)
+        );
+        assert_eq!(b.1.name, "t/b-2.x");
+        assert_eq!(b.1.width, 4);
+        assert_eq!(b.1.height, 6);
+        assert_eq!(b.1.scene, Some(PathBuf::from("room.glb")));
+        assert_eq!(b.1.point_lights, 3);
+        assert_eq!((a.1.reference.spp, b.1.reference.spp), (2048, 2048));
+        assert_eq!(
+            b.1.camera.path,
+            pathlight_render::camera_path::PathKind::Orbit
+        );
+        assert!(b.1.scenes.is_empty());
+        // Without [[scenes]]: the spec itself, unnamed.
+        let plain = Spec::parse(MINIMAL).unwrap();
+        assert_eq!(plain.entries().unwrap(), vec![(None, plain.clone())]);
+        // Bad names and bad entries are refused.
+        let base = MINIMAL;
+        for (entries, expect) in [
+            ("[[scenes]]\nname = \"../up\"\n", "../up"),
+            ("[[scenes]]\nname = \"\"\n", "name"),
+            (
+                "[[scenes]]\nname = \"x\"\n[[scenes]]\nname = \"x\"\n",
+                "twice",
+            ),
+            ("[[scenes]]\nname = \"x\"\nwidth = 0\n", "\"x\""),
+        ] {
+            let e = Spec::parse(&format!("{base}{entries}")).unwrap_err();
+            assert!(e.contains(expect), "{e}");
+        }
+    }
 
     #[test]
     fn minimal_spec_gets_defaults() {

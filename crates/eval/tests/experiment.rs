@@ -244,3 +244,23 @@ fn time_budgets_are_met_and_published_files_exist() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Every spec the repository ships (`experiments/*.toml`, except the real-time preset, which
+/// is a `Config`) loads, with each of its `[[scenes]]` entries valid.
+#[test]
+fn the_shipped_experiments_load() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if !name.ends_with(".toml") || name == "realtime.toml" {
+            continue;
+        }
+        let spec = Spec::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let entries = spec.entries().unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!entries.is_empty());
+        count += 1;
+    }
+    assert!(count >= 4, "{count} specs");
+}
