@@ -68,29 +68,20 @@ pub struct Spec {
 }
 
 /// One entry of `[[scenes]]`: a name, and the scene and camera fields it replaces.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SceneEntry {
-    /// Names its output folder and its results: letters, digits, `-`, `_` and `.`.
+    /// Names its output folder and its results: letters, digits, `-`, `_` and `.` (required).
     pub name: String,
-    #[serde(default)]
     pub scene: Option<PathBuf>,
-    #[serde(default)]
     pub environment: Option<PathBuf>,
-    #[serde(default)]
     pub environment_rotation: Option<f32>,
-    #[serde(default)]
     pub environment_intensity: Option<f32>,
-    #[serde(default)]
     pub point_lights: Option<usize>,
-    #[serde(default)]
     pub width: Option<u32>,
-    #[serde(default)]
     pub height: Option<u32>,
-    #[serde(default)]
     pub camera: Option<CameraPath>,
     /// The reference's samples per pixel (`[reference] spp`).
-    #[serde(default)]
     pub reference_spp: Option<u32>,
 }
 
