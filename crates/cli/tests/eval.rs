@@ -104,7 +104,8 @@ fn bad_specs_are_refused_naming_the_file() {
 }
 
 /// `[[scenes]]`: one spec, two camera setups of the Cornell box; each entry writes its own
-/// folder, `--only` runs a subset, and an unknown name is refused naming the spec.
+/// folder (with the display modes asked for), `--only` runs a subset, and an unknown name is
+/// refused naming the spec.
 #[test]
 fn scenes_run_each_entry_into_its_folder() {
     let dir = temp_dir("scenes");
@@ -115,6 +116,7 @@ fn scenes_run_each_entry_into_its_folder() {
 name = "two"
 width = 16
 height = 12
+display_modes = ["samples", "probability"]
 [budget]
 spp = [1, 2]
 [reference]
@@ -161,7 +163,12 @@ frames_per_view = 2
         .unwrap();
         assert_eq!(results["spec"]["name"], format!("two/{name}"));
         assert_eq!(results["spec"]["width"], width);
-        assert!(all.join(name).join("report.html").exists());
+        let report = std::fs::read_to_string(all.join(name).join("report.html")).unwrap();
+        for mode in ["samples", "probability"] {
+            let file = format!("images/0-plain-{mode}.png");
+            assert!(all.join(name).join(&file).exists(), "{file}");
+            assert!(report.contains(&file), "{file} not in the report");
+        }
     }
 
     let some = dir.join("some");

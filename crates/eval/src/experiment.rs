@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use pathlight_core::rng::hash;
 use pathlight_render::config::MAX_SPP;
+use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::{FrameReport, Pipeline};
 use pathlight_render::{Config, World};
 
@@ -39,6 +40,8 @@ pub struct Snapshots {
     pub reference: Image,
     /// (configuration, what the image is, e.g. "64 spp, 312 ms", image).
     pub images: Vec<(String, String, Image)>,
+    /// (configuration, display mode, RGBA8 pixels) of the spec's `display_modes`.
+    pub displays: Vec<(String, DisplayMode, Vec<u8>)>,
 }
 
 /// What a run produced.
@@ -132,6 +135,7 @@ impl Runner<'_> {
             view: last_view,
             reference: references.last().expect("one per measured view").1.clone(),
             images: Vec::new(),
+            displays: Vec::new(),
         };
         for c in &spec.configurations {
             world.set_light_selection(c.config.light_selection);
@@ -185,6 +189,12 @@ impl Runner<'_> {
                     if rep == 0 && v == last_view {
                         if let Some((label, image)) = snapshot {
                             snapshots.images.push((c.name.clone(), label, image));
+                        }
+                        for &mode in &spec.display_modes {
+                            let mut rgba = Vec::new();
+                            let display = &pipeline.config().display;
+                            pipeline.sources().rgba8(mode, display, &mut rgba);
+                            snapshots.displays.push((c.name.clone(), mode, rgba));
                         }
                     }
                 }

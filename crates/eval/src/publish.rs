@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pathlight_render::output::{encode_png, write_atomic};
+use pathlight_render::output::{encode_png, encode_rgba8_png, write_atomic};
 
 use crate::experiment::Outcome;
 use crate::metrics::{self, Metric};
@@ -465,6 +465,20 @@ fn images(
     }
     s.rows.push(full);
     s.rows.push(errors);
+    if !snaps.displays.is_empty() {
+        let mut row = Vec::new();
+        for (name, mode, rgba) in &snaps.displays {
+            let k = snaps.images.iter().position(|i| i.0 == *name).unwrap_or(0);
+            let file = format!("images/{}-{}.png", slug(k, name), mode.name());
+            write(out, &file, &encode_rgba8_png(w, h, rgba))?;
+            row.push(picture(
+                &file,
+                &format!("{name}: display mode {}", mode.name()),
+                shown,
+            ));
+        }
+        s.rows.push(row);
+    }
     for (i, &rect) in rects.iter().enumerate() {
         let scale = (CROP_DISPLAY / rect.width.max(1)).max(1);
         let mut row = Vec::new();

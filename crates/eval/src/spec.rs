@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use pathlight_render::camera_path::CameraPath;
 use pathlight_render::config::{CameraConfig, Config, MAX_SPP};
+use pathlight_render::frame::display::DisplayMode;
 use pathlight_scene::{Camera as SceneCamera, LoadOptions};
 use serde::{Deserialize, Serialize};
 
@@ -59,6 +60,10 @@ pub struct Spec {
     pub budget: Budget,
     #[serde(default)]
     pub reference: ReferenceSpec,
+    /// Display modes of the frame pipeline written beside each configuration's image (first
+    /// repetition, last budget point of the last measured view), e.g. `probability`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub display_modes: Vec<DisplayMode>,
     #[serde(rename = "configuration")]
     pub configurations: Vec<Configuration>,
     /// Several scenes or camera setups in one experiment: each entry runs the whole
