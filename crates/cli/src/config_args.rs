@@ -121,6 +121,11 @@ pub struct ConfigArgs {
     #[arg(long)]
     pub adaptive_cap: bool,
 
+    /// Adaptive sampling: every frame traces a uniform frame's number of samples,
+    /// distributed by the pixels' probabilities (not in the thesis).
+    #[arg(long)]
+    pub adaptive_budget: bool,
+
     /// Seed 000's forward reprojection: keep the samples that stay valid when the camera
     /// moves.
     #[arg(long)]
@@ -291,6 +296,7 @@ impl ConfigArgs {
         adaptive.max_spp = self.max_spp.unwrap_or(adaptive.max_spp);
         adaptive.measure = self.adaptive_measure.unwrap_or(adaptive.measure);
         adaptive.cap |= self.adaptive_cap;
+        adaptive.budget |= self.adaptive_budget;
         reprojection.enabled |= self.reprojection;
         reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
         reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);

@@ -301,3 +301,68 @@ fn skipping_empty_iterations_keeps_the_schedules_decisions() {
     assert_eq!(skipped.history, plain.history);
     assert_eq!(skipped.adaptive.probability, plain.adaptive.probability);
 }
+
+/// Adaptive sampling's `budget`: every frame traces about a uniform frame's samples. During
+/// the schedule a frame runs several iterations (so the schedule takes fewer frames than
+/// `max_spp`, never more samples than the pixels in a frame of more than one iteration);
+/// after it each pixel takes samples in proportion to its probability, one per pixel on
+/// average.
+#[test]
+fn budget_frames_trace_a_uniform_frames_samples() {
+    use pathlight_render::frame::adaptive::AdaptiveConfig;
+    let world = cornell();
+    let cfg = Config {
+        max_bounces: Some(2),
+        frame: FrameConfig {
+            adaptive: AdaptiveConfig {
+                enabled: true,
+                min_spp: 4,
+                max_spp: 32,
+                budget: true,
+                ..AdaptiveConfig::default()
+            },
+            ..FrameConfig::default()
+        },
+        ..config()
+    };
+    let pixels = 40 * 30;
+    let mut pipeline = Pipeline::new(cfg);
+    let mut schedule_frames = 0;
+    while pipeline.adaptive.iteration < 32 {
+        let before = pipeline.adaptive.iteration;
+        let r = pipeline.render_frame(&world);
+        let ran = pipeline.adaptive.iteration - before;
+        assert!(ran >= 1);
+        assert!(ran == 1 || r.samples <= pixels, "{} samples", r.samples);
+        schedule_frames += 1;
+    }
+    assert!(schedule_frames < 32, "{schedule_frames} frames");
+    let p = pipeline.adaptive.probability.clone();
+    assert!(p.iter().all(|&p| (4.0 / 32.0..=1.0).contains(&p)));
+    let start: Vec<u32> = pipeline.history.iter().map(|h| h.n).collect();
+    let frames = 40;
+    let mut total = 0;
+    for _ in 0..frames {
+        let r = pipeline.render_frame(&world);
+        // Each pixel's count is its integer part plus a draw of variance at most 1/4.
+        let sd = (pixels as f64 * 0.25).sqrt();
+        assert!(
+            (r.samples as f64 - pixels as f64).abs() < 4.0 * sd,
+            "{} samples",
+            r.samples
+        );
+        total += r.samples;
+    }
+    assert!((total as f64 / (frames * pixels) as f64 - 1.0).abs() < 0.02);
+    // The samples went in proportion to P: pixels of P = 1 took 1 / mean(P) per frame.
+    let mean_p = p.iter().sum::<f32>() as f64 / pixels as f64;
+    let (mut got, mut expected) = (0.0, 0.0);
+    for ((h, &n0), &p) in pipeline.history.iter().zip(&start).zip(&p) {
+        if p == 1.0 {
+            got += (h.n - n0) as f64;
+            expected += frames as f64 / mean_p;
+        }
+    }
+    assert!(expected > 0.0);
+    assert!((got / expected - 1.0).abs() < 0.05, "{got} vs {expected}");
+}

@@ -305,6 +305,7 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
             });
         ui.checkbox(&mut a.cap, "cap at max spp (the combination's fix)");
         ui.checkbox(&mut a.skip_empty, "skip iterations that sample no pixel");
+        ui.checkbox(&mut a.budget, "a uniform frame's samples per frame, by P");
         ui.checkbox(
             &mut a.keep_sampling,
             "combination: reprojected pixels keep their probability's samples",

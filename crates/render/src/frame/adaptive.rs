@@ -26,6 +26,19 @@
 //! in `tests/pipeline.rs`); only the frames that would trace nothing are gone. (With the
 //! tone-mapped `V`, which is small everywhere, most of the schedule was such frames.)
 //!
+//! Beyond the thesis, [`AdaptiveConfig::budget`] (off by default): every frame traces about
+//! as many samples as a uniform frame. The thesis's frames each sample a fraction of the
+//! pixels, yet each still pays for deciding, accumulating and showing all of them, and the
+//! traced pixels no longer form whole packets of camera rays; at equal time that fixed cost
+//! ate the gain (`BENCHMARKS.md`). With `budget`, a frame of the schedule runs iterations
+//! `i .. j`, `j` the last whose samples stay within one per pixel ([`Adaptive::budget_end`]),
+//! each pixel taking the samples those iterations would give it with its `V` frozen at the
+//! frame's start ([`Schedule::count`]: the thesis recomputes `V` after each iteration; the
+//! threshold falls, so a pixel whose `V` passes it at iteration `k` is sampled at every
+//! iteration from `k` on). Once the probabilities are fixed, a pixel takes `P / mean(P)`
+//! samples per frame on average (the integer part, and one more with the fraction's
+//! probability): the thesis's distribution of samples, in frames of uniform cost.
+//!
 //! With forward reprojection on as well, the pipeline runs the thesis's combination
 //! (Algorithm 2): reprojected pixels bring their samples, statistics and probability; after a
 //! camera move the schedule restarts, and pixels that already have a probability take no
@@ -83,6 +96,14 @@ pub struct AdaptiveConfig {
     /// reprojected pixel keeps being sampled with the probability it brought, instead of
     /// waiting for iteration `max_spp` (Algorithm 2) while only the new pixels are sampled.
     pub keep_sampling: bool,
+    /// Beyond the thesis: every frame traces about as many samples as a uniform frame
+    /// (`spp` per pixel on average), so that adaptive frames cost what uniform ones cost.
+    /// During the schedule a frame runs as many iterations as fit that budget (each pixel's
+    /// `V` as it stood at the frame's start); once the probabilities are fixed each pixel
+    /// takes `spp P / mean(P)` samples per frame (the integer part, and one more with the
+    /// fraction's probability): the same distribution of samples as the thesis's, without a
+    /// frame for every `max_spp / mean(P)` samples.
+    pub budget: bool,
 }
 
 impl Default for AdaptiveConfig {
@@ -95,6 +116,7 @@ impl Default for AdaptiveConfig {
             cap: false,
             skip_empty: true,
             keep_sampling: false,
+            budget: false,
         }
     }
 }
@@ -188,12 +210,22 @@ pub struct Adaptive {
     pub probability: Vec<f32>,
     /// The iteration of the schedule the next frame runs (0 at every reset).
     pub iteration: u32,
+    /// `1 / mean(P)` over the pixels, set when the probabilities are fixed
+    /// ([`AdaptiveConfig::budget`]'s samples per frame are `spp P scale`).
+    pub scale: f32,
 }
 
 /// One iteration's decisions: which pixels are sampled.
 #[derive(Debug, Clone, Copy)]
 pub struct Schedule {
+    /// The first iteration this frame runs.
     pub iteration: u32,
+    /// The end (exclusive) of the iterations this frame runs: `iteration + 1` except with
+    /// [`AdaptiveConfig::budget`] during the schedule.
+    pub end: u32,
+    /// Once the probabilities are fixed, with [`AdaptiveConfig::budget`]: a pixel's samples
+    /// per frame are `P scale` (otherwise 0: one sample with probability `P`).
+    pub scale: f32,
     pub tau: f32,
     pub min_spp: u32,
     pub max_spp: u32,
@@ -211,6 +243,8 @@ impl Schedule {
     pub fn new(config: &AdaptiveConfig, iteration: u32, combination: bool, seed: u64) -> Self {
         Self {
             iteration,
+            end: iteration.saturating_add(1),
+            scale: 0.0,
             tau: threshold(iteration, config.min_spp, config.max_spp),
             min_spp: config.min_spp,
             max_spp: config.max_spp,
@@ -223,27 +257,71 @@ impl Schedule {
     }
 
     /// Whether pixel `pixel`, with statistics `stats` and probability `probability`, takes a
-    /// sample in this iteration.
+    /// sample in this frame.
     #[inline]
     pub fn wants(&self, pixel: usize, stats: &PixelStats, probability: f32) -> bool {
-        let draw = || {
-            let u = unit_f32(hash(&[self.seed, pixel as u64, self.iteration as u64]) as u32);
-            u < probability
-        };
+        self.count(pixel, stats, probability) > 0
+    }
+
+    /// How many of this frame's iterations sample pixel `pixel` (each iteration: `spp`
+    /// samples): 0 or 1 in the thesis's algorithm, where a frame is one iteration; up to
+    /// `end - iteration` when a frame runs several ([`AdaptiveConfig::budget`]), or
+    /// `P scale` on average once the probabilities are fixed.
+    #[inline]
+    pub fn count(&self, pixel: usize, stats: &PixelStats, probability: f32) -> u32 {
+        let draw =
+            |iteration: u32| unit_f32(hash(&[self.seed, pixel as u64, iteration as u64]) as u32);
         if self.iteration >= self.max_spp {
             if probability == NO_PROBABILITY {
                 // Only when adaptive sampling was switched on past the schedule's end.
-                return true;
+                return 1;
             }
-            return draw();
+            if self.scale > 0.0 {
+                let x = probability * self.scale;
+                let whole = x.floor();
+                return whole as u32 + u32::from(draw(self.iteration) < x - whole);
+            }
+            return u32::from(draw(self.iteration) < probability);
         }
+        let end = self.end.min(self.max_spp);
         if self.combination && probability != NO_PROBABILITY {
-            return self.keep_sampling && draw();
+            if !self.keep_sampling {
+                return 0;
+            }
+            return (self.iteration..end)
+                .map(|i| u32::from(draw(i) < probability))
+                .sum();
         }
         if self.cap && stats.n >= self.max_spp {
-            return false;
+            return 0;
         }
-        stats.n < self.min_spp || deviation(stats, self.measure) >= self.tau
+        if end == self.iteration + 1 {
+            // One iteration (the thesis): `V` decides unless the pixel is below `min_spp`.
+            return u32::from(stats.n < self.min_spp || deviation(stats, self.measure) >= self.tau);
+        }
+        // Several: first the iterations the pixel needs to reach `min_spp` (counted as one
+        // sample each, `spp` per frame being a sample count of its own), then every
+        // iteration whose threshold is at most the pixel's `V` (the threshold falls, so
+        // these are the iterations from the first such one on).
+        let span = end - self.iteration;
+        let below = self.min_spp.saturating_sub(stats.n).min(span);
+        let from = self.iteration + below;
+        let v = deviation(stats, self.measure);
+        let (mut first, mut last) = (from, end);
+        while first < last {
+            let mid = first + (last - first) / 2;
+            if threshold(mid, self.min_spp, self.max_spp) > v {
+                first = mid + 1;
+            } else {
+                last = mid;
+            }
+        }
+        let count = below + (end - first);
+        if self.cap {
+            count.min(self.max_spp - stats.n)
+        } else {
+            count
+        }
     }
 }
 
@@ -303,7 +381,8 @@ impl Adaptive {
     /// (the combination's flaw: they hold more than `max_spp` samples; none with `cap`).
     pub fn fix_probabilities(&mut self, history: &[PixelStats], max_spp: u32, cap: bool) -> u64 {
         use rayon::prelude::*;
-        self.probability
+        let (above, sum) = self
+            .probability
             .par_iter_mut()
             .zip(history.par_iter())
             .map(|(p, h)| {
@@ -311,9 +390,44 @@ impl Adaptive {
                     let n = if cap { h.n.min(max_spp) } else { h.n };
                     *p = n as f32 / max_spp as f32;
                 }
-                u64::from(*p > 1.0)
+                (u64::from(*p > 1.0), f64::from(*p))
             })
-            .sum()
+            .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        self.scale = if sum > 0.0 {
+            (self.probability.len() as f64 / sum) as f32
+        } else {
+            1.0
+        };
+        above
+    }
+
+    /// [`AdaptiveConfig::budget`] during the schedule: the end of the iterations a frame
+    /// that starts at `schedule.iteration` runs, the last one whose samples (counted as in
+    /// [`Schedule::count`]) stay within `budget` iterations' worth (a pixel's sample each);
+    /// at least one iteration, at most up to `max_spp`.
+    pub fn budget_end(&self, schedule: &Schedule, history: &[PixelStats], budget: u64) -> u32 {
+        use rayon::prelude::*;
+        let samples = |end: u32| -> u64 {
+            let s = Schedule { end, ..*schedule };
+            history
+                .par_iter()
+                .zip(self.probability.par_iter())
+                .enumerate()
+                .map(|(i, (h, &p))| u64::from(s.count(i, h, p)))
+                .sum()
+        };
+        // The largest end in (iteration, max_spp] within the budget (sample counts grow
+        // with the end).
+        let (mut fits, mut over) = (schedule.iteration + 1, schedule.max_spp + 1);
+        while fits + 1 < over {
+            let mid = fits + (over - fits) / 2;
+            if samples(mid) <= budget {
+                fits = mid;
+            } else {
+                over = mid;
+            }
+        }
+        fits
     }
 }
 
@@ -489,6 +603,181 @@ mod tests {
                 (got - n * p).abs() <= 4.0 * sd + 1e-9,
                 "pixel {i}: {got} of {n} at P {p}"
             );
+        }
+    }
+
+    #[test]
+    fn a_frame_of_several_iterations_counts_what_they_would_sample() {
+        // `budget`: a frame running iterations i..j gives a pixel the samples those
+        // iterations would, its V frozen at the frame's start (here V is fixed anyway, and
+        // the sample count grows as the iterations go). From 2 samples on: below, V is not
+        // defined yet (no variance) and the frame's frozen V is not the one the thesis's
+        // later iterations would see.
+        let config = AdaptiveConfig {
+            enabled: true,
+            min_spp: 4,
+            max_spp: 32,
+            ..AdaptiveConfig::default()
+        };
+        let stats_for = |v: f32, n: u32| {
+            let s = v * (1.0 + EPSILON) - EPSILON;
+            let mut p = PixelStats {
+                n,
+                ..PixelStats::default()
+            };
+            p.direct.mean = Vec3::ONE;
+            p.radiance_m2 = Vec3::splat(s * s * (n.max(2) - 1) as f32);
+            p
+        };
+        for cap in [false, true] {
+            for &v in &[0.0, 0.05, 0.3, 0.5, 0.77, 1.0, 2.0] {
+                for n0 in [2, 3, 4, 9, 30] {
+                    for i in 0..32 {
+                        for j in i + 1..=33 {
+                            let mut n = n0;
+                            for k in i..j.min(32) {
+                                let one = Schedule::new(
+                                    &AdaptiveConfig {
+                                        cap,
+                                        ..config.clone()
+                                    },
+                                    k,
+                                    false,
+                                    1,
+                                );
+                                n += u32::from(one.wants(0, &stats_for(v, n), NO_PROBABILITY));
+                            }
+                            let mut frame = Schedule::new(
+                                &AdaptiveConfig {
+                                    cap,
+                                    ..config.clone()
+                                },
+                                i,
+                                false,
+                                1,
+                            );
+                            frame.end = j;
+                            assert_eq!(
+                                frame.count(0, &stats_for(v, n0), NO_PROBABILITY),
+                                n - n0,
+                                "V {v}, n {n0}, iterations {i}..{j}, cap {cap}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn budget_frames_take_a_uniform_frames_samples_by_probability() {
+        // Probabilities fixed: scale = 1 / mean(P), and a pixel takes P scale samples per
+        // frame on average, so a frame takes one per pixel on average.
+        let config = AdaptiveConfig {
+            enabled: true,
+            min_spp: 4,
+            max_spp: 32,
+            budget: true,
+            ..AdaptiveConfig::default()
+        };
+        let pixels = 4000;
+        let history: Vec<PixelStats> = (0..pixels)
+            .map(|i| PixelStats {
+                n: [4, 8, 32][i % 3],
+                ..PixelStats::default()
+            })
+            .collect();
+        let mut adaptive = Adaptive::default();
+        adaptive.reset(pixels);
+        adaptive.fix_probabilities(&history, 32, false);
+        let mean = (4.0 + 8.0 + 32.0) / 3.0 / 32.0;
+        assert!(
+            (adaptive.scale - 1.0 / mean).abs() < 1e-3,
+            "{}",
+            adaptive.scale
+        );
+        let frames = 50;
+        let mut per_class = [0u64; 3];
+        let mut total = 0;
+        for f in 0..frames {
+            let mut s = Schedule::new(&config, 32 + f, false, 5);
+            s.scale = adaptive.scale;
+            let mut frame = 0;
+            for (i, h) in history.iter().enumerate() {
+                let c = s.count(i, h, adaptive.probability[i]);
+                per_class[i % 3] += u64::from(c);
+                frame += u64::from(c);
+            }
+            // Within 4 standard deviations of the frame's pixel count (each pixel's count is
+            // its integer part plus a Bernoulli draw of variance at most 1/4).
+            let sd = (pixels as f64 * 0.25).sqrt();
+            assert!((frame as f64 - pixels as f64).abs() < 4.0 * sd, "{frame}");
+            total += frame;
+        }
+        assert!((total as f64 / (frames as f64 * pixels as f64) - 1.0).abs() < 0.01);
+        // Each class in proportion to its P.
+        for (c, n) in [4.0, 8.0, 32.0].iter().enumerate() {
+            let expected = frames as f64 * (pixels / 3) as f64 * (n / 32.0) * adaptive.scale as f64;
+            let got = per_class[c] as f64;
+            assert!(
+                (got - expected).abs() < 0.03 * expected,
+                "class {c}: {got} vs {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_budget_picks_the_last_iteration_that_fits() {
+        // V spread evenly over [0, 1.2): a frame from iteration i samples, per pixel, the
+        // iterations whose threshold is at most its V; the end is the last one within the
+        // budget.
+        let config = AdaptiveConfig {
+            enabled: true,
+            min_spp: 4,
+            max_spp: 32,
+            measure: Measure::Luminance,
+            budget: true,
+            ..AdaptiveConfig::default()
+        };
+        let pixels = 600;
+        let history: Vec<PixelStats> = (0..pixels)
+            .map(|i| {
+                let v = 1.2 * i as f32 / pixels as f32;
+                let s = v * (1.0 + EPSILON) - EPSILON;
+                let mut p = PixelStats {
+                    n: 4,
+                    ..PixelStats::default()
+                };
+                p.direct.mean = Vec3::ONE;
+                p.radiance_m2 = Vec3::splat(s.max(0.0).powi(2) * 3.0);
+                p
+            })
+            .collect();
+        let mut adaptive = Adaptive::default();
+        adaptive.reset(pixels);
+        let samples = |i: u32, end: u32| -> u64 {
+            let mut s = Schedule::new(&config, i, false, 3);
+            s.end = end;
+            history
+                .iter()
+                .enumerate()
+                .map(|(k, h)| u64::from(s.count(k, h, NO_PROBABILITY)))
+                .sum()
+        };
+        for i in [4, 10, 20, 31] {
+            for budget in [1, 300, 600, 2000, 100_000] {
+                let s = Schedule::new(&config, i, false, 3);
+                let end = adaptive.budget_end(&s, &history, budget);
+                assert!(end > i && end <= 32, "{i} {budget}: {end}");
+                assert!(
+                    end == i + 1 || samples(i, end) <= budget,
+                    "{i} {budget}: {end}"
+                );
+                assert!(
+                    end == 32 || samples(i, end + 1) > budget,
+                    "{i} {budget}: {end}"
+                );
+            }
         }
     }
 

@@ -341,6 +341,8 @@ impl Pipeline {
         let mut samples = 0;
         let mut tau = None;
         let mut above_one = None;
+        // The end of the iterations of adaptive sampling's schedule this frame runs.
+        let mut end = None;
         let frame = &self.config.frame;
         let techniques = frame.adaptive.enabled || frame.reprojection.enabled;
         if traced {
@@ -375,13 +377,22 @@ impl Pipeline {
                     self.adaptive.iteration = busy;
                 }
                 let schedule = frame.adaptive.enabled.then(|| {
-                    Schedule::new(
+                    let mut s = Schedule::new(
                         &frame.adaptive,
                         self.adaptive.iteration,
                         frame.reprojection.enabled,
                         self.epoch_config.seed,
-                    )
+                    );
+                    if a.budget && !self.after_move {
+                        if s.iteration < s.max_spp {
+                            s.end = self.adaptive.budget_end(&s, &self.history, pixels);
+                        } else {
+                            s.scale = self.adaptive.scale;
+                        }
+                    }
+                    s
                 });
+                end = schedule.map(|s| s.end);
                 tau = schedule.filter(|s| s.iteration < s.max_spp).map(|s| s.tau);
                 let plan = Planned {
                     history: &self.history,
@@ -453,14 +464,16 @@ impl Pipeline {
                         .for_each(|(h, l)| h.merge(&l.stats));
                 }
                 let a = &frame.adaptive;
-                if a.enabled && self.adaptive.iteration + 1 == a.max_spp {
+                let i = self.adaptive.iteration;
+                let end = end.unwrap_or(i.saturating_add(1));
+                if a.enabled && i < a.max_spp && end >= a.max_spp {
                     above_one = Some(self.adaptive.fix_probabilities(
                         &self.history,
                         a.max_spp,
                         a.cap,
                     ));
                 }
-                self.adaptive.iteration = self.adaptive.iteration.saturating_add(1);
+                self.adaptive.iteration = end;
             } else {
                 let first = self.frames == 0;
                 self.history
@@ -603,6 +616,21 @@ struct Planned<'a> {
     fresh: u32,
 }
 
+impl Planned<'_> {
+    /// The samples a pixel the primary pass traced takes, outside the frame after a move:
+    /// `spp`, or `spp` for each of the schedule's iterations that sample it when a frame runs
+    /// several ([`AdaptiveConfig::budget`](adaptive::AdaptiveConfig::budget)).
+    #[inline]
+    fn scheduled(&self, pixel: usize) -> u32 {
+        match &self.schedule {
+            Some(s) if s.end > s.iteration + 1 || s.scale > 0.0 => {
+                self.spp * s.count(pixel, &self.history[pixel], self.probability[pixel])
+            }
+            _ => self.spp,
+        }
+    }
+}
+
 impl Plan for Planned<'_> {
     fn along_first_bounce(&self) -> bool {
         self.reprojection
@@ -622,7 +650,7 @@ impl Plan for Planned<'_> {
     #[inline]
     fn keep(&self, pixel: usize, g: &GPixel) -> u32 {
         if self.fresh == 0 && (self.schedule.is_none() || self.after_move.is_none()) {
-            return self.spp;
+            return self.scheduled(pixel);
         }
         let surviving = self
             .after_move
@@ -632,7 +660,7 @@ impl Plan for Planned<'_> {
             return (self.fresh - h.n).max(self.spp);
         }
         let (Some(s), Some(_)) = (&self.schedule, self.after_move) else {
-            return self.spp;
+            return self.scheduled(pixel);
         };
         let p = if h.n == 0 {
             NO_PROBABILITY
