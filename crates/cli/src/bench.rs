@@ -26,7 +26,7 @@ pub enum BenchCommand {
     Rays(RaysArgs),
     /// Render frames along a short orbit with the real-time configuration: per-pass and
     /// per-frame times (medians) and Mrays/s.
-    Frame(FrameArgs),
+    Frame(Box<FrameArgs>),
 }
 
 #[derive(Debug, Clone, Args)]

@@ -143,6 +143,18 @@ pub struct ConfigArgs {
     /// ones at once [default: 0, off: one per frame as the thesis].
     #[arg(long, value_name = "N")]
     pub fresh_spp: Option<u32>,
+
+    /// Seed 004's ReSTIR direct illumination at the first hit (`[frame.restir]`).
+    #[arg(long)]
+    pub restir: bool,
+
+    /// ReSTIR: light candidates per pixel, 1..1024 [default: 32].
+    #[arg(long, value_name = "N")]
+    pub candidates: Option<u32>,
+
+    /// ReSTIR: the unbiased combination (1/Z with visibility) instead of the plain one.
+    #[arg(long)]
+    pub restir_unbiased: bool,
 }
 
 fn parse_measure(s: &str) -> Result<Measure, String> {
@@ -301,6 +313,10 @@ impl ConfigArgs {
         reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
         reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);
         reprojection.fresh_spp = self.fresh_spp.unwrap_or(reprojection.fresh_spp);
+        let restir = &mut c.frame.restir;
+        restir.enabled |= self.restir;
+        restir.candidates = self.candidates.unwrap_or(restir.candidates);
+        restir.unbiased |= self.restir_unbiased;
         Ok(c)
     }
 }

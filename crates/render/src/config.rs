@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::bsdf::Microfacet;
 use crate::frame::adaptive::AdaptiveConfig;
 use crate::frame::reprojection::ReprojectionConfig;
+use crate::frame::restir::RestirConfig;
 use crate::light::LightSelection;
 use crate::sampler::SamplerKind;
 
@@ -54,6 +55,8 @@ pub struct FrameConfig {
     pub adaptive: AdaptiveConfig,
     /// Seed 000's forward reprojection (with `adaptive`: their combination).
     pub reprojection: ReprojectionConfig,
+    /// Seed 004's ReSTIR direct illumination at the first hit.
+    pub restir: RestirConfig,
 }
 
 impl Default for FrameConfig {
@@ -63,6 +66,7 @@ impl Default for FrameConfig {
             max_frames: 0,
             adaptive: AdaptiveConfig::default(),
             reprojection: ReprojectionConfig::default(),
+            restir: RestirConfig::default(),
         }
     }
 }
@@ -254,6 +258,16 @@ impl Config {
         }
         self.frame.adaptive.validate()?;
         self.frame.reprojection.validate()?;
+        self.frame.restir.validate()?;
+        if self.frame.restir.enabled
+            && (self.frame.adaptive.enabled || self.frame.reprojection.enabled)
+        {
+            return Err(err(
+                "frame.restir.enabled",
+                &true,
+                "not together with seed 000's adaptive sampling or reprojection (not built)".into(),
+            ));
+        }
         Ok(())
     }
 }

@@ -48,7 +48,7 @@ use crate::alias::AliasTable;
 use crate::distribution::Distribution2D;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 /// How a light is picked for next event estimation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -76,6 +76,19 @@ pub struct LightSample {
     pub pdf: f32,
     /// True for punctual lights (no MIS with BSDF sampling).
     pub delta: bool,
+}
+
+/// A point chosen on a light, independent of any shading point (seed 004's reservoirs keep
+/// it and re-evaluate it at other pixels and frames with [`Lights::evaluate`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LightPoint {
+    /// The light's index (see the module doc).
+    pub light: u32,
+    /// Area lights: the world point; the environment: the unit direction toward it; punctual
+    /// lights: unused (zero).
+    pub point: Vec3,
+    /// Area lights: the point's barycentrics (for the emissive texture).
+    pub bary: Vec2,
 }
 
 /// Environment maps lower than this are sampled with several rows per texel row.
@@ -444,42 +457,115 @@ impl Lights {
     /// Samples a light and a point on it as seen from `p`: `u_select` picks the light, `u` the
     /// point. `None` when nothing can be sampled (no light, or the point is behind a one-sided
     /// emitter), and whenever the sample would carry no radiance (outside a spot's cone or a
-    /// light's range, on a black texel).
+    /// light's range, on a black texel). The same as [`choose`](Self::choose), then
+    /// [`sample_point`](Self::sample_point), then [`evaluate`](Self::evaluate).
     #[inline]
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
-        let (index, select) = self.selection.as_ref()?.sample(u_select);
+        let (index, select) = self.choose(u_select)?;
+        self.evaluate_selected(p, &self.sample_point(index, u)?, select)
+    }
+
+    /// Picks a light: its index and the probability of picking it.
+    #[inline]
+    pub fn choose(&self, u: f32) -> Option<(usize, f32)> {
+        Some(self.selection.as_ref()?.sample(u))
+    }
+
+    /// A point on light `index` (see the module doc for the indices), independent of the
+    /// shading point: what a reservoir keeps and re-evaluates elsewhere (seed 004). Area
+    /// lights: uniform by area; punctual lights: the light itself; the environment: a
+    /// direction from its distribution. `None` for an index out of range or a black
+    /// environment.
+    #[inline]
+    pub fn sample_point(&self, index: usize, u: Vec2) -> Option<LightPoint> {
         let n_tri = self.triangles.len();
-        let sample = if index < n_tri {
-            self.sample_triangle(&self.triangles[index], p, u, select)?
-        } else if let Some(light) = self.punctual.get(index - n_tri) {
-            sample_punctual(light, p, select)?
+        if let Some(t) = self.triangles.get(index) {
+            let s = u.x.max(0.0).sqrt();
+            let bu = u.y * s;
+            let bv = s - bu;
+            let bary = Vec2::new(bu, bv);
+            Some(LightPoint {
+                light: index as u32,
+                point: t.a + t.e1 * bu + t.e2 * bv,
+                bary,
+            })
+        } else if index - n_tri < self.punctual.len() {
+            Some(LightPoint {
+                light: index as u32,
+                point: Vec3::ZERO,
+                bary: Vec2::ZERO,
+            })
+        } else if index + 1 == self.count {
+            let light = self.environment.as_ref()?;
+            let (uv, _) = light.distribution.as_ref()?.sample(u);
+            Some(LightPoint {
+                light: index as u32,
+                point: light.env.uv_to_direction(uv),
+                bary: Vec2::ZERO,
+            })
         } else {
-            self.sample_environment(u, select)?
-        };
-        (sample.radiance.max_element() > 0.0 && sample.pdf > 0.0 && sample.pdf.is_finite())
-            .then_some(sample)
+            None
+        }
+    }
+
+    /// `point` (from [`sample_point`](Self::sample_point)) as seen from `p`: direction,
+    /// distance, radiance, and the solid-angle density (selection included) with which
+    /// [`sample`](Self::sample) at `p` returns it. `None` where `p` is behind a one-sided
+    /// emitter or the point carries no radiance toward `p`.
+    #[inline]
+    pub fn evaluate(&self, p: Vec3, point: &LightPoint) -> Option<LightSample> {
+        if point.light as usize >= self.count {
+            return None;
+        }
+        let select = self.selection_pmf(point.light as usize);
+        self.evaluate_selected(p, point, select)
+    }
+
+    /// The density with which [`choose`](Self::choose) then
+    /// [`sample_point`](Self::sample_point) produce `point`, in the point's own measure:
+    /// per unit area on triangles, per light for punctual lights, per unit solid angle for the
+    /// environment (seed 004's reservoirs resample in this domain).
+    #[inline]
+    pub fn point_pdf(&self, point: &LightPoint) -> f32 {
+        let index = point.light as usize;
+        if index >= self.count {
+            return 0.0;
+        }
+        let select = self.selection_pmf(index);
+        if select == 0.0 {
+            return 0.0;
+        }
+        if let Some(t) = self.triangles.get(index) {
+            select / t.area
+        } else if index - self.triangles.len() < self.punctual.len() {
+            select
+        } else {
+            self.environment.as_ref().map_or(0.0, |light| {
+                select * environment_pdf_uv(light, light.env.direction_to_uv(point.point))
+            })
+        }
     }
 
     #[inline]
-    fn sample_triangle(
-        &self,
-        t: &TriangleLight,
-        p: Vec3,
-        u: Vec2,
-        select: f32,
-    ) -> Option<LightSample> {
-        let s = u.x.max(0.0).sqrt();
-        let bu = u.y * s;
-        let bv = s - bu;
-        let q = t.a + t.e1 * bu + t.e2 * bv;
-        let (wi, distance, pdf) = solid_angle(t, p, q)?;
-        Some(LightSample {
-            wi,
-            distance,
-            radiance: self.triangle_radiance(t, Vec2::new(bu, bv)),
-            pdf: select * pdf,
-            delta: false,
-        })
+    fn evaluate_selected(&self, p: Vec3, point: &LightPoint, select: f32) -> Option<LightSample> {
+        let index = point.light as usize;
+        let n_tri = self.triangles.len();
+        let sample = if let Some(t) = self.triangles.get(index) {
+            let (wi, distance, pdf) = solid_angle(t, p, point.point)?;
+            LightSample {
+                wi,
+                distance,
+                radiance: self.triangle_radiance(t, point.bary),
+                pdf: select * pdf,
+                delta: false,
+            }
+        } else if let Some(light) = self.punctual.get(index - n_tri) {
+            sample_punctual(light, p, select)?
+        } else {
+            self.environment_sample(point.point, select)?
+        };
+        (sample.radiance.max_element() > 0.0 && sample.pdf > 0.0 && sample.pdf.is_finite())
+            .then_some(sample)
     }
 
     #[inline]
@@ -497,10 +583,9 @@ impl Lights {
         }
     }
 
-    fn sample_environment(&self, u: Vec2, select: f32) -> Option<LightSample> {
+    /// The environment light toward direction `wi` (unit), as sampled.
+    fn environment_sample(&self, wi: Vec3, select: f32) -> Option<LightSample> {
         let light = self.environment.as_ref()?;
-        let (uv, _) = light.distribution.as_ref()?.sample(u);
-        let wi = light.env.uv_to_direction(uv);
         // The density and radiance of the direction itself, as `environment` finds them for a
         // ray that escapes that way: the same texel, bit for bit (so that the MIS weights of
         // the two strategies agree exactly).

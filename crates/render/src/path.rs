@@ -223,7 +223,13 @@ impl PathTracer<'_> {
 
     /// The fraction of light that passes from surface point `surface` along `dir` to a light
     /// `distance` away (1 or 0 for opaque scenes; blended surfaces let 1 - alpha through).
-    fn transmittance(&self, surface: &Surface, dir: Vec3, distance: f32, rays: &mut u32) -> f32 {
+    pub(crate) fn transmittance(
+        &self,
+        surface: &Surface,
+        dir: Vec3,
+        distance: f32,
+        rays: &mut u32,
+    ) -> f32 {
         let world = self.world;
         let origin = surface.spawn_origin(dir);
         let t_max = if distance.is_finite() {
@@ -267,10 +273,28 @@ impl PathTracer<'_> {
     #[inline]
     pub fn trace_from<const ALONG_FIRST_BOUNCE: bool>(
         &self,
+        ray: Ray,
+        first: Option<&Vertex>,
+        sampler: PixelSampler,
+        rng: Rng,
+    ) -> PathSample {
+        self.trace_lit::<ALONG_FIRST_BOUNCE>(ray, first, sampler, rng, None)
+    }
+
+    /// As [`trace_from`](Self::trace_from); with `first_direct`, the direct light at the first
+    /// hit is given (seed 004's reservoirs): next event estimation is skipped there, and the
+    /// emission that BSDF sampling reaches from it through a non-delta lobe is left out
+    /// (except from emitters that are not in the light list, which light sampling never
+    /// finds). The sampler's dimensions are consumed as without it, so the rest of the path is
+    /// the same.
+    #[inline]
+    pub fn trace_lit<const ALONG_FIRST_BOUNCE: bool>(
+        &self,
         mut ray: Ray,
         first: Option<&Vertex>,
         mut sampler: PixelSampler,
         mut rng: Rng,
+        first_direct: Option<Vec3>,
     ) -> PathSample {
         let world = self.world;
         let lights = &world.lights;
@@ -311,6 +335,12 @@ impl PathTracer<'_> {
                 if le != Vec3::ZERO {
                     let w = if bounce == 0 || specular_bounce {
                         1.0
+                    } else if bounce == 1 && first_direct.is_some() {
+                        if env_pdf > 0.0 {
+                            0.0
+                        } else {
+                            1.0
+                        }
                     } else {
                         power_heuristic(prev_pdf, env_pdf)
                     };
@@ -351,7 +381,15 @@ impl PathTracer<'_> {
                 } else {
                     let light_pdf =
                         lights.pdf_triangle(prev_p, surface.instance, surface.triangle, surface.p);
-                    power_heuristic(prev_pdf, light_pdf)
+                    if bounce == 1 && first_direct.is_some() {
+                        if light_pdf > 0.0 {
+                            0.0
+                        } else {
+                            1.0
+                        }
+                    } else {
+                        power_heuristic(prev_pdf, light_pdf)
+                    }
                 };
                 add(&mut out, bounce.saturating_sub(1), beta * le * w);
             }
@@ -367,7 +405,9 @@ impl PathTracer<'_> {
             // Next event estimation.
             let u_light = sampler.next_1d();
             let u_point = sampler.next_2d();
-            if !bsdf.is_delta() && !lights.is_empty() {
+            if let (0, Some(direct)) = (bounce, first_direct) {
+                add(&mut out, 0, direct);
+            } else if !bsdf.is_delta() && !lights.is_empty() {
                 if let Some(ls) = lights.sample(surface.p, u_light, u_point) {
                     let wi_local = surface.to_local(ls.wi);
                     // Reflection needs both directions on the same geometric side.

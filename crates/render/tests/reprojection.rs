@@ -473,6 +473,13 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         max_error: 0.5,
         ..ReprojectionConfig::default()
     };
+    tuned.frame.restir = pathlight_render::frame::restir::RestirConfig {
+        enabled: false,
+        candidates: 3,
+        unbiased: true,
+        iterations: 4,
+        ..Default::default()
+    };
     let run = |cfg: &Config| {
         let mut pipeline = Pipeline::new(cfg.clone());
         let mut images = Vec::new();

@@ -7,7 +7,7 @@ use pathlight_render::config::Tonemap;
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
-use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY, REPROJECT};
+use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY, REPROJECT, RESTIR};
 use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
 
@@ -235,6 +235,10 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     ui.label("camera rays to the G-buffer: position, normal, albedo, roughness, metallic, material, depth, motion");
     ui.separator();
 
+    ui.label(egui::RichText::new(RESTIR).strong());
+    restir(c, ui);
+    ui.separator();
+
     ui.label(egui::RichText::new(LIGHTING).strong());
     ui.add(egui::Slider::new(&mut c.spp, 1..=64).text("samples per pixel per frame"));
     let mut unlimited = c.max_bounces.is_none();
@@ -315,4 +319,38 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
 
     ui.label(egui::RichText::new(DISPLAY).strong());
     ui.label("tone mapping and display modes: see Display above");
+}
+
+/// Seed 004's switches and parameters. ReSTIR does not run together with seed 000's
+/// techniques (not built): switching it on switches them off.
+fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
+    let was = c.frame.restir.enabled;
+    let r = &mut c.frame.restir;
+    ui.checkbox(
+        &mut r.enabled,
+        "ReSTIR DI (seed 004): resampled light samples at the first hit",
+    );
+    ui.add_enabled_ui(r.enabled, |ui| {
+        ui.add(
+            egui::Slider::new(&mut r.candidates, 1..=1024)
+                .logarithmic(true)
+                .text("candidates"),
+        );
+        ui.checkbox(&mut r.visibility_reuse, "visibility reuse");
+        ui.checkbox(&mut r.temporal, "temporal reuse");
+        ui.add(egui::Slider::new(&mut r.m_cap, 0..=100).text("M cap (x current M; 0: none)"));
+        ui.checkbox(&mut r.spatial, "spatial reuse");
+        ui.add(egui::Slider::new(&mut r.neighbours, 1..=16).text("neighbours"));
+        ui.add(egui::Slider::new(&mut r.iterations, 1..=4).text("iterations"));
+        ui.add(egui::Slider::new(&mut r.radius, 1.0..=100.0).text("radius (pixels)"));
+        ui.add(egui::Slider::new(&mut r.depth_threshold, 0.0..=1.0).text("depth threshold"));
+        ui.add(egui::Slider::new(&mut r.normal_threshold, 0.0..=1.0).text("normal threshold"));
+        ui.checkbox(&mut r.unbiased, "unbiased (1/Z with visibility)");
+    });
+    if r.enabled && !was {
+        c.frame.adaptive.enabled = false;
+        c.frame.reprojection.enabled = false;
+    } else if c.frame.adaptive.enabled || c.frame.reprojection.enabled {
+        c.frame.restir.enabled = false;
+    }
 }

@@ -4,6 +4,8 @@
 //! and indirect light are kept apart (seed 001's split), with their running statistics over
 //! the frame's samples, and the first sample's first bounce.
 
+use glam::Vec3;
+
 use crate::path::{Bounce, PathTracer};
 
 use super::accumulation::PixelStats;
@@ -21,7 +23,8 @@ pub struct LightSample {
 /// The lighting pass for one pixel: `spp` samples, indices `index..index + spp`; sample
 /// `index` continues from `hit` (the primary pass's, same index). Returns the pixel's lighting
 /// and the rays traced. `ALONG_FIRST_BOUNCE`: the first sample measures the radiance along
-/// its first bounce ([`crate::path::Bounce::radiance`]).
+/// its first bounce ([`crate::path::Bounce::radiance`]). `first_direct`: that sample's direct
+/// light at its first hit, given (ReSTIR's, [`PathTracer::trace_lit`]).
 #[inline(always)]
 pub fn lighting<const ALONG_FIRST_BOUNCE: bool>(
     tracer: &PathTracer,
@@ -30,12 +33,14 @@ pub fn lighting<const ALONG_FIRST_BOUNCE: bool>(
     hit: &PrimaryHit,
     index: u32,
     spp: u32,
+    first_direct: Option<Vec3>,
 ) -> (LightSample, u64) {
-    let s = tracer.trace_from::<ALONG_FIRST_BOUNCE>(
+    let s = tracer.trace_lit::<ALONG_FIRST_BOUNCE>(
         hit.ray,
         hit.first.as_ref(),
         hit.sampler.clone(),
         hit.rng.clone(),
+        first_direct,
     );
     let mut stats = PixelStats::one(s.direct, s.indirect);
     let mut rays = s.rays as u64;

@@ -37,6 +37,7 @@ pub mod gbuffer;
 pub mod lighting;
 pub mod ping_pong;
 pub mod reprojection;
+pub mod restir;
 
 use std::time::Instant;
 
@@ -46,24 +47,40 @@ use serde::Serialize;
 
 use crate::camera::Camera;
 use crate::config::Config;
-use crate::path::PathTracer;
+use crate::path::{CameraSample, PathTracer};
 use crate::world::World;
+use pathlight_accel::{Hit, Ray};
 
 use accumulation::PixelStats;
 use adaptive::{Adaptive, Schedule, NO_PROBABILITY};
 use display::{DisplayMode, Sources};
-use gbuffer::{GBuffer, GPixel};
+use gbuffer::{GBuffer, GPixel, PrimaryHit};
 use lighting::LightSample;
 use reprojection::{Reprojection, ReprojectionReport};
+use restir::{Restir, RestirConfig, RestirTimes};
 
 /// The passes' names, as in timings and display modes.
 pub const REPROJECT: &str = "reproject";
 pub const PRIMARY: &str = "primary";
 pub const LIGHTING: &str = "lighting";
+/// Seed 004's passes: the reservoirs' candidates (with visibility reuse), temporal and
+/// spatial reuse.
+pub const RESTIR: &str = "restir";
+pub const RESTIR_TEMPORAL: &str = "restir temporal";
+pub const RESTIR_SPATIAL: &str = "restir spatial";
 pub const ACCUMULATE: &str = "accumulate";
 pub const DISPLAY: &str = "display";
 /// Every pass, in the order a frame runs them.
-pub const PASSES: [&str; 5] = [REPROJECT, PRIMARY, LIGHTING, ACCUMULATE, DISPLAY];
+pub const PASSES: [&str; 8] = [
+    REPROJECT,
+    PRIMARY,
+    RESTIR,
+    RESTIR_TEMPORAL,
+    RESTIR_SPATIAL,
+    LIGHTING,
+    ACCUMULATE,
+    DISPLAY,
+];
 
 /// Pixels per parallel task: a run of pixels in row-major order, small enough that its first
 /// hits stay in the L1/L2 cache between the primary and the lighting pass.
@@ -143,6 +160,11 @@ pub struct Pipeline {
     pub adaptive: Adaptive,
     /// Forward reprojection's per-pixel states (seed 000).
     pub reprojection: Reprojection,
+    /// ReSTIR's reservoirs (seed 004).
+    pub restir: Restir,
+    /// The frame's first hits, kept for the whole frame when ReSTIR runs (its passes need
+    /// every pixel's surface before the lighting pass).
+    hits: Vec<PrimaryHit>,
     epoch: u64,
     frames: u32,
     frame_number: u64,
@@ -177,6 +199,8 @@ impl Pipeline {
             rgba: Vec::new(),
             adaptive: Adaptive::default(),
             reprojection: Reprojection::default(),
+            restir: Restir::default(),
+            hits: Vec::new(),
             epoch: 0,
             frames: 0,
             frame_number: 0,
@@ -227,6 +251,9 @@ impl Pipeline {
             let reset = if moved {
                 Reset::Camera
             } else {
+                // Last frame's reservoirs mean nothing under other settings (a camera move,
+                // or a frame of a pipeline that does not accumulate, keeps them).
+                self.restir.reset();
                 Reset::Settings
             };
             self.reset = Some(match self.reset {
@@ -240,6 +267,7 @@ impl Pipeline {
     /// Clears the history: the next frame starts a new epoch afresh.
     pub fn reset(&mut self) {
         self.reset = Some(Reset::Settings);
+        self.restir.reset();
     }
 
     /// Frames accumulated in this epoch.
@@ -343,6 +371,7 @@ impl Pipeline {
         let mut above_one = None;
         // The end of the iterations of adaptive sampling's schedule this frame runs.
         let mut end = None;
+        let mut restir_times: Option<RestirTimes> = None;
         let frame = &self.config.frame;
         let techniques = frame.adaptive.enabled || frame.reprojection.enabled;
         if traced {
@@ -416,6 +445,22 @@ impl Pipeline {
                     &tracer,
                     &plan,
                 )
+            } else if frame.restir.enabled {
+                samples = spp as u64 * pixels;
+                let index = self.frames.saturating_mul(spp);
+                let (r, times) = trace_restir(
+                    &mut self.gbuffer,
+                    &mut self.lighting,
+                    &mut self.hits,
+                    &mut self.restir,
+                    &frame.restir,
+                    previous,
+                    &tracer,
+                    index,
+                    spp,
+                );
+                restir_times = Some(times);
+                r
             } else {
                 samples = spp as u64 * pixels;
                 let index = self.frames.saturating_mul(spp);
@@ -428,12 +473,32 @@ impl Pipeline {
                 )
             };
             rays += r;
-            let wall = t.elapsed().as_secs_f64() * 1e3;
+            let mut wall = t.elapsed().as_secs_f64() * 1e3;
+            if let Some(times) = &restir_times {
+                wall -= times.candidates_ms + times.temporal_ms + times.spatial_ms;
+            }
             let primary_ms = wall * primary_s / (primary_s + lighting_s).max(1e-12);
             passes.push(PassTime {
                 pass: PRIMARY,
                 ms: primary_ms,
             });
+            if let Some(times) = restir_times {
+                rays += times.rays;
+                passes.extend([
+                    PassTime {
+                        pass: RESTIR,
+                        ms: times.candidates_ms,
+                    },
+                    PassTime {
+                        pass: RESTIR_TEMPORAL,
+                        ms: times.temporal_ms,
+                    },
+                    PassTime {
+                        pass: RESTIR_SPATIAL,
+                        ms: times.spatial_ms,
+                    },
+                ]);
+            }
             passes.push(PassTime {
                 pass: LIGHTING,
                 ms: wall - primary_ms,
@@ -541,8 +606,10 @@ impl Pipeline {
             + self.lighting.capacity() * size_of::<LightSample>()
             + self.history.capacity() * size_of::<PixelStats>()
             + self.rgba.capacity();
-        let techniques =
-            self.adaptive.probability.capacity() * size_of::<f32>() + self.reprojection.bytes();
+        let techniques = self.adaptive.probability.capacity() * size_of::<f32>()
+            + self.reprojection.bytes()
+            + self.restir.bytes()
+            + self.hits.capacity() * size_of::<PrimaryHit>();
         (plain, techniques)
     }
 
@@ -738,38 +805,39 @@ fn trace<P: Plan>(
                         }
                     }
                 }
-                // Their rays together: neighbouring pixels' rays go as packets.
-                camera_rays.clear();
-                camera_rays.extend(cameras.iter().map(|c| c.ray));
-                first_hits.resize(camera_rays.len(), None);
-                tracer.world.accel.intersect_batch(camera_rays, first_hits);
                 hits.clear();
-                if P::EVERY_PIXEL {
-                    for ((g, sample), &first) in
-                        gpixels.iter_mut().zip(cameras.drain(..)).zip(&*first_hits)
-                    {
-                        let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
-                        *g = pixel;
-                        hits.push(hit);
-                        rays += r as u64;
-                    }
+                rays += if P::EVERY_PIXEL {
+                    primary_run(
+                        tracer,
+                        previous,
+                        cameras,
+                        camera_rays,
+                        first_hits,
+                        |i, pixel, hit| {
+                            gpixels[i] = pixel;
+                            hits.push(hit);
+                        },
+                    )
                 } else {
-                    for ((&(k, ..), sample), &first) in
-                        traced.iter().zip(cameras.drain(..)).zip(&*first_hits)
-                    {
-                        let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
-                        gpixels[k] = pixel;
-                        hits.push(hit);
-                        rays += r as u64;
-                    }
-                }
+                    primary_run(
+                        tracer,
+                        previous,
+                        cameras,
+                        camera_rays,
+                        first_hits,
+                        |i, pixel, hit| {
+                            gpixels[traced[i].0] = pixel;
+                            hits.push(hit);
+                        },
+                    )
+                };
                 let t1 = Instant::now();
                 if P::EVERY_PIXEL {
                     let index = plan.sample(start).unwrap_or(0);
                     let spp = plan.keep(start, &gpixels[0]);
                     for ((l, hit), (x, y)) in lpixels.iter_mut().zip(hits.iter()).zip(pixels()) {
                         let (sample, r) =
-                            lighting::lighting::<false>(tracer, x, y, hit, index, spp);
+                            lighting::lighting::<false>(tracer, x, y, hit, index, spp, None);
                         *l = sample;
                         rays += r;
                     }
@@ -779,9 +847,9 @@ fn trace<P: Plan>(
                         let spp = plan.keep(start + k, &gpixels[k]);
                         lpixels[k] = if spp > 0 {
                             let (sample, r) = if along {
-                                lighting::lighting::<true>(tracer, x, y, hit, index, spp)
+                                lighting::lighting::<true>(tracer, x, y, hit, index, spp, None)
                             } else {
-                                lighting::lighting::<false>(tracer, x, y, hit, index, spp)
+                                lighting::lighting::<false>(tracer, x, y, hit, index, spp, None)
                             };
                             rays += r;
                             sample
@@ -795,4 +863,123 @@ fn trace<P: Plan>(
             },
         )
         .reduce(|| (0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2))
+}
+
+/// The primary pass over a run's camera samples (drained): their rays traced together
+/// (neighbouring pixels' rays go as packets), then each followed to its first surface;
+/// `emit(i, pixel, hit)` takes the i-th sample's G-buffer pixel and first hit. Returns the
+/// rays traced.
+#[inline(always)]
+fn primary_run(
+    tracer: &PathTracer,
+    previous: Option<&Camera>,
+    cameras: &mut Vec<CameraSample>,
+    camera_rays: &mut Vec<Ray>,
+    first_hits: &mut Vec<Option<Hit>>,
+    mut emit: impl FnMut(usize, GPixel, PrimaryHit),
+) -> u64 {
+    camera_rays.clear();
+    camera_rays.extend(cameras.iter().map(|c| c.ray));
+    first_hits.resize(camera_rays.len(), None);
+    tracer.world.accel.intersect_batch(camera_rays, first_hits);
+    let mut rays = 0;
+    for (i, (sample, &first)) in cameras.drain(..).zip(&*first_hits).enumerate() {
+        let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
+        emit(i, pixel, hit);
+        rays += r as u64;
+    }
+    rays
+}
+
+/// The frame with ReSTIR (seed 004): the primary pass over every pixel (sample `index`), the
+/// ReSTIR passes over the whole frame's first hits, then the lighting pass, whose first
+/// sample of each pixel takes its direct light at the first hit from the pixel's reservoir.
+/// Returns the rays traced, the primary and lighting passes' thread times (seconds) and the
+/// ReSTIR passes' times.
+#[allow(clippy::too_many_arguments)]
+fn trace_restir(
+    gbuffer: &mut GBuffer,
+    lighting: &mut [LightSample],
+    hits: &mut Vec<PrimaryHit>,
+    restir: &mut Restir,
+    config: &RestirConfig,
+    previous: Option<&Camera>,
+    tracer: &PathTracer,
+    index: u32,
+    spp: u32,
+) -> ((u64, f64, f64), RestirTimes) {
+    let w = gbuffer.width.max(1) as usize;
+    let t = Instant::now();
+    let runs: Vec<(Vec<PrimaryHit>, u64)> = gbuffer
+        .pixels
+        .par_chunks_mut(RUN)
+        .enumerate()
+        .map_init(
+            || {
+                (
+                    Vec::with_capacity(RUN),
+                    Vec::with_capacity(RUN),
+                    Vec::with_capacity(RUN),
+                )
+            },
+            |(cameras, camera_rays, first_hits), (b, gpixels)| {
+                let start = b * RUN;
+                cameras.extend(
+                    (start..start + gpixels.len())
+                        .map(|p| tracer.camera_sample((p % w) as u32, (p / w) as u32, index)),
+                );
+                let mut out = Vec::with_capacity(gpixels.len());
+                let rays = primary_run(
+                    tracer,
+                    previous,
+                    cameras,
+                    camera_rays,
+                    first_hits,
+                    |i, pixel, hit| {
+                        gpixels[i] = pixel;
+                        out.push(hit);
+                    },
+                );
+                (out, rays)
+            },
+        )
+        .collect();
+    hits.clear();
+    let mut rays = 0;
+    for (run, r) in runs {
+        hits.extend(run);
+        rays += r;
+    }
+    let primary_s = t.elapsed().as_secs_f64();
+
+    let times = restir.run(
+        tracer,
+        config,
+        &gbuffer.pixels,
+        gbuffer.width,
+        index,
+        hits.par_iter()
+            .map(|h| h.first.map(|v| (v, h.ray.direction))),
+    );
+
+    let t = Instant::now();
+    let (receivers, reservoirs) = (&restir.receivers, &restir.reservoirs);
+    rays += lighting
+        .par_iter_mut()
+        .zip(hits.par_iter())
+        .enumerate()
+        .map(|(p, (l, hit))| {
+            let (x, y) = ((p % w) as u32, (p / w) as u32);
+            let mut shadow = 0;
+            let direct = receivers[p]
+                .as_ref()
+                .map(|rec| rec.shade(tracer, &reservoirs[p], &mut shadow));
+            let (sample, r) = lighting::lighting::<false>(tracer, x, y, hit, index, spp, direct);
+            *l = sample;
+            r + shadow as u64
+        })
+        .sum::<u64>();
+    let lighting_s = t.elapsed().as_secs_f64();
+    restir.keep(&gbuffer.pixels);
+    ((rays, primary_s, lighting_s), times)
 }

@@ -13,7 +13,7 @@ use pathlight_scene::{
 
 use super::{LightSelection, Lights};
 
-fn emissive_material(emissive: Vec3, two_sided: bool) -> Material {
+pub(crate) fn emissive_material(emissive: Vec3, two_sided: bool) -> Material {
     Material {
         emissive,
         emits_from_back: two_sided,
@@ -21,7 +21,7 @@ fn emissive_material(emissive: Vec3, two_sided: bool) -> Material {
     }
 }
 
-fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32) -> Mesh {
+pub(crate) fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32) -> Mesh {
     Mesh {
         positions,
         indices,
@@ -30,7 +30,7 @@ fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32) -> Mesh {
     }
 }
 
-fn instance(mesh: u32, transform: Mat4) -> Instance {
+pub(crate) fn instance(mesh: u32, transform: Mat4) -> Instance {
     Instance {
         mesh,
         transform,
@@ -54,7 +54,7 @@ fn world_corners(scene: &Scene, instance: u32, triangle: u32) -> [Vec3; 3] {
 
 /// Lambert's formula: the irradiance at `p` (normal `n`) from a polygon of unit radiance that
 /// lies entirely above the tangent plane: (1/2) |sum_i angle_i (n . gamma_i)|.
-fn polygon_irradiance(p: Vec3, n: Vec3, corners: &[Vec3]) -> f64 {
+pub(crate) fn polygon_irradiance(p: Vec3, n: Vec3, corners: &[Vec3]) -> f64 {
     let k = corners.len();
     let mut sum = 0.0f64;
     for i in 0..k {
@@ -740,4 +740,93 @@ fn cornell_box_light_shines_down_into_the_box() {
     assert!(lights
         .sample(Vec3::new(0.0, 3.0, 0.0), 0.5, Vec2::splat(0.5))
         .is_none());
+}
+
+/// Seed 004's split of light sampling: choosing a light, a point on it, and evaluating the
+/// point from a shading point give exactly what `sample` gives, and `evaluate` finds the
+/// density `sample` reports (pbrt-v4's light sampler test checks its PMF method this way).
+#[test]
+fn choose_sample_point_and_evaluate_agree_with_sample() {
+    let mut scene = triangle_scene();
+    scene.lights = vec![
+        punctual(
+            PunctualKind::Point,
+            Vec3::new(0.5, 3.0, 0.0),
+            Vec3::NEG_Y,
+            2.0,
+        ),
+        punctual(
+            PunctualKind::Spot {
+                inner_cone: 0.3,
+                outer_cone: 0.6,
+            },
+            Vec3::new(-0.5, 3.0, 0.5),
+            Vec3::new(0.2, -1.0, 0.1),
+            5.0,
+        ),
+        punctual(
+            PunctualKind::Directional,
+            Vec3::ZERO,
+            Vec3::new(0.3, -1.0, 0.2),
+            0.5,
+        ),
+    ];
+    scene.environment = Some(random_environment(16, 8, 3));
+    let mut kinds = [0usize; 3];
+    for selection in [LightSelection::Power, LightSelection::Uniform] {
+        let lights = Lights::new(&scene, selection);
+        assert_eq!(lights.len(), 6 + 3 + 1);
+        let mut rng = Rng::new(11, 0);
+        for _ in 0..20_000 {
+            let p = Vec3::new(rng.next_f32() - 0.5, -0.2, rng.next_f32() - 0.5);
+            let (u_select, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+            let (index, pmf) = lights.choose(u_select).unwrap();
+            assert_eq!(pmf, lights.selection_pmf(index));
+            let point = lights.sample_point(index, u);
+            let split = point.and_then(|point| lights.evaluate(p, &point));
+            let whole = lights.sample(p, u_select, u);
+            assert_eq!(split, whole, "light {index}");
+            if let Some(s) = whole {
+                kinds[if index < 6 {
+                    0
+                } else if index < 9 {
+                    1
+                } else {
+                    2
+                }] += 1;
+                if !s.delta && index < 6 {
+                    // The density `evaluate` reports for the point is the one `pdf_triangle` finds.
+                    let et = &scene.emissive_triangles[index];
+                    let q = p + s.wi * s.distance;
+                    let pdf = lights.pdf_triangle(p, et.instance, et.triangle, q);
+                    assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf, "{pdf} vs {}", s.pdf);
+                }
+                if index == 9 {
+                    assert_eq!(s.pdf, lights.pdf_environment(s.wi));
+                }
+                // The point's own density over the solid-angle one is the geometry term:
+                // cos_light / d^2 on triangles, 1 elsewhere.
+                let g = lights.point_pdf(&point.unwrap()) / s.pdf;
+                let expected = if index < 6 {
+                    let et = &scene.emissive_triangles[index];
+                    front_normal(&scene, et.instance, et.triangle)
+                        .dot(s.wi)
+                        .abs()
+                        / (s.distance * s.distance)
+                } else {
+                    1.0
+                };
+                assert!((g - expected).abs() <= 1e-4 * expected, "{g} vs {expected}");
+            }
+        }
+    }
+    assert!(kinds.iter().all(|&k| k > 1000), "{kinds:?}");
+    // Indices beyond the lights are refused, not a panic.
+    let lights = Lights::new(&scene, LightSelection::Power);
+    assert!(lights.sample_point(10, Vec2::splat(0.5)).is_none());
+    let beyond = super::LightPoint {
+        light: 10,
+        ..Default::default()
+    };
+    assert!(lights.evaluate(Vec3::ZERO, &beyond).is_none());
 }

@@ -1,0 +1,682 @@
+//! Seed 004: ReSTIR direct illumination at the first hit (Bitterli et al. 2020, as the thesis
+//! builds it): resampled importance sampling of many light candidates into one reservoir per
+//! pixel, reused across frames and neighbouring pixels, then shaded with one shadow ray.
+//!
+//! ```text
+//! receivers   first hits (primary pass)               -> receivers (surface, BSDF, wo)
+//! candidates  receivers, lights                       -> reservoirs (RIS over `candidates`
+//!                                                        light samples; visibility reuse)
+//! temporal    reservoirs, last frame's reservoirs and -> reservoirs
+//!             receivers, motion vectors
+//! spatial     reservoirs, receivers                   -> reservoirs (`iterations` rounds of
+//!                                                        `neighbours` within `radius`)
+//! shading     reservoirs, receivers                   -> the first hit's direct light, which
+//!             (in the lighting pass)                     replaces next event estimation there
+//! ```
+//!
+//! Choices the sources leave open, written down:
+//! - **The domain.** A reservoir's sample is a point on a light ([`LightPoint`]): a point of an
+//!   emissive triangle, a punctual light, or an environment direction. The target function
+//!   and densities are measured in that point's own measure (area for triangles, counting
+//!   for punctual lights, solid angle for the environment), so a sample moves between pixels
+//!   without a Jacobian: target `p_hat(y) = lum(f cos L) G` with `G = cos_light / d^2` for
+//!   triangles and 1 otherwise (unshadowed), source density [`Lights::point_pdf`] (selection
+//!   by power or uniform, as `light_selection` says, then uniform by area).
+//! - **Weights.** The reservoir's contribution weight is `W = w_sum / (Z p_hat(y))`. Biased
+//!   mode: `Z` is the sum of the combined reservoirs' `M` (the paper's plain combination).
+//!   Unbiased mode (the paper's Algorithm 6, "1/Z"): `Z` sums the `M` of only those combined
+//!   reservoirs whose own pixel could have produced the sample, i.e. whose target there is
+//!   positive and whose shadow ray to it is clear (one more shadow ray per reused reservoir).
+//!   That count is exact only if every reservoir holds samples its own pixel sees, so the
+//!   unbiased mode keeps that invariant: the candidates' survivor is always shadow-tested
+//!   (visibility reuse, whatever `visibility_reuse` says), and a combined reservoir whose
+//!   survivor its pixel does not see is emptied (`W = 0`; it would shade nothing there
+//!   anyway). Without it, a sample a neighbour or an earlier frame saw but this pixel does not
+//!   is counted out of `Z` while its weight stays in `w_sum`, and the temporal chain amplifies
+//!   that by up to `m_cap` per frame (measured: weights growing without bound behind a
+//!   blocker).
+//! - **Visibility reuse**: the survivor of the candidates is shadow-tested and its `W` set to
+//!   0 when occluded, before any reuse.
+//! - **Temporal reuse**: the previous frame's final reservoir at the pixel the motion vector
+//!   points to (nearest pixel), kept when the previous surface lies within
+//!   `depth_threshold x depth` of this one, the normals' cosine is at least
+//!   `normal_threshold` and the albedos differ by at most [`ALBEDO_TOLERANCE`] in every
+//!   channel; its `M` is capped at `m_cap` times the current `M` (0: no cap).
+//! - **Spatial reuse**: neighbours uniform in a disk of `radius` pixels (the paper's pattern),
+//!   rejected when off screen, on the sky, when their depth differs by more than
+//!   `depth_threshold` relative to this pixel's, or their normals' cosine is below
+//!   `normal_threshold`. Each iteration reads the previous iteration's reservoirs.
+//! - **Which samples**: the frame's first sample of each pixel (the G-buffer's) is lit by its
+//!   reservoir; with more samples per frame the others use next event estimation. Later
+//!   bounces always use next event estimation. Emission that BSDF sampling reaches from the
+//!   first hit through a non-delta lobe is left out (the reservoir has it), except from
+//!   emitters the light list does not hold.
+//! - **Randomness**: each pixel's candidates and neighbours come from streams hashed from the
+//!   seed, the pixel and its sample index, so frames do not depend on the thread count.
+
+use glam::{Vec2, Vec3};
+use pathlight_core::color::luminance;
+use pathlight_core::rng::{hash, Rng};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::bsdf::Bsdf;
+use crate::config::ConfigError;
+use crate::light::{LightPoint, LightSample, Lights};
+use crate::path::{PathTracer, Vertex};
+use crate::surface::Surface;
+
+use super::gbuffer::GPixel;
+
+/// Largest candidate count (the thesis's keys halve and double it within 1..1024).
+pub const MAX_CANDIDATES: u32 = 1024;
+/// Most neighbours per spatial iteration, and most iterations.
+pub const MAX_NEIGHBOURS: u32 = 64;
+pub const MAX_ITERATIONS: u32 = 16;
+/// Temporal reuse: the largest difference of the albedos (per channel) of a pixel and its
+/// previous surface.
+pub const ALBEDO_TOLERANCE: f32 = 0.1;
+
+/// Stream tags of the pixels' random numbers (candidates, temporal, spatial iterations).
+const CANDIDATES_STREAM: u64 = 0x5e57_1d00;
+
+/// Settings of ReSTIR DI (`[frame.restir]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RestirConfig {
+    pub enabled: bool,
+    /// Light samples resampled into each pixel's reservoir (1..=1024).
+    pub candidates: u32,
+    /// Shadow-test the candidates' survivor before reuse.
+    pub visibility_reuse: bool,
+    pub temporal: bool,
+    pub spatial: bool,
+    /// Neighbours per spatial iteration.
+    pub neighbours: u32,
+    /// Spatial iterations.
+    pub iterations: u32,
+    /// Spatial radius in pixels.
+    pub radius: f32,
+    /// Relative depth difference above which a neighbour (or a previous surface) is rejected.
+    pub depth_threshold: f32,
+    /// Cosine of the normals below which a neighbour (or a previous surface) is rejected.
+    pub normal_threshold: f32,
+    /// The previous frame's `M` is capped at `m_cap` times the current `M` (0: no cap).
+    pub m_cap: u32,
+    /// The unbiased combination (1/Z with visibility) instead of the plain one.
+    pub unbiased: bool,
+}
+
+impl Default for RestirConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            candidates: 32,
+            visibility_reuse: true,
+            temporal: true,
+            spatial: true,
+            neighbours: 4,
+            iterations: 2,
+            radius: 30.0,
+            depth_threshold: 0.1,
+            normal_threshold: 0.9,
+            m_cap: 20,
+            unbiased: false,
+        }
+    }
+}
+
+impl RestirConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(1..=MAX_CANDIDATES).contains(&self.candidates) {
+            return Err(ConfigError::new(
+                "frame.restir.candidates",
+                self.candidates,
+                format!("between 1 and {MAX_CANDIDATES}"),
+            ));
+        }
+        if self.neighbours > MAX_NEIGHBOURS {
+            return Err(ConfigError::new(
+                "frame.restir.neighbours",
+                self.neighbours,
+                format!("at most {MAX_NEIGHBOURS}"),
+            ));
+        }
+        if self.iterations > MAX_ITERATIONS {
+            return Err(ConfigError::new(
+                "frame.restir.iterations",
+                self.iterations,
+                format!("at most {MAX_ITERATIONS}"),
+            ));
+        }
+        if !(self.radius.is_finite() && self.radius >= 1.0 && self.radius <= 4096.0) {
+            return Err(ConfigError::new(
+                "frame.restir.radius",
+                self.radius,
+                "between 1 and 4096 pixels",
+            ));
+        }
+        if !(self.depth_threshold.is_finite() && self.depth_threshold >= 0.0) {
+            return Err(ConfigError::new(
+                "frame.restir.depth_threshold",
+                self.depth_threshold,
+                "finite and >= 0",
+            ));
+        }
+        if !(-1.0..=1.0).contains(&self.normal_threshold) {
+            return Err(ConfigError::new(
+                "frame.restir.normal_threshold",
+                self.normal_threshold,
+                "a cosine, between -1 and 1",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A single-sample weighted reservoir (weighted reservoir sampling, streaming RIS).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Reservoir {
+    /// The surviving sample.
+    pub sample: LightPoint,
+    /// Sum of the resampling weights seen.
+    pub w_sum: f32,
+    /// Candidates behind it (M).
+    pub m: f32,
+    /// The target function of the sample at the pixel that owns the reservoir.
+    pub target: f32,
+    /// The contribution weight W (0: no usable sample).
+    pub weight: f32,
+}
+
+impl Reservoir {
+    /// Streams in a candidate of resampling weight `w` standing for `m` candidates, `u`
+    /// uniform in [0, 1): it survives with probability `w / w_sum`. Returns whether it did.
+    #[inline]
+    pub fn update(&mut self, sample: LightPoint, w: f32, target: f32, m: f32, u: f32) -> bool {
+        self.m += m;
+        if !(w > 0.0 && w.is_finite()) {
+            return false;
+        }
+        self.w_sum += w;
+        if u * self.w_sum < w {
+            self.sample = sample;
+            self.target = target;
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Sets `W = w_sum / (z p_hat(y))` (0 without a sample or with `z` = 0).
+    #[inline]
+    pub fn finish(&mut self, z: f32) {
+        let w = self.w_sum / (z * self.target);
+        self.weight = if self.target > 0.0 && z > 0.0 && w.is_finite() {
+            w
+        } else {
+            0.0
+        };
+    }
+
+    /// Resampled importance sampling: `candidates` draws of `draw` (a sample and its source
+    /// density), resampled in proportion to `target / density`; `W` set with `Z = M`.
+    pub fn resample(
+        candidates: u32,
+        rng: &mut Rng,
+        mut draw: impl FnMut(&mut Rng) -> Option<(LightPoint, f32)>,
+        mut target: impl FnMut(&LightPoint) -> f32,
+    ) -> Self {
+        let mut r = Self::default();
+        for _ in 0..candidates {
+            match draw(rng) {
+                Some((point, density)) if density > 0.0 => {
+                    let t = target(&point);
+                    r.update(point, t / density, t, 1.0, rng.next_f32());
+                }
+                _ => r.m += 1.0,
+            }
+        }
+        r.finish(r.m);
+        r
+    }
+}
+
+/// A first-hit surface as the reservoirs see it: where light is received and how it is
+/// reflected toward the camera.
+#[derive(Debug, Clone, Copy)]
+pub struct Receiver {
+    pub surface: Surface,
+    pub bsdf: Bsdf,
+    /// Unit direction toward the camera.
+    pub wo: Vec3,
+    /// Light from behind the surface counts (transmission).
+    pub transmits: bool,
+}
+
+/// A light sample as a receiver sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct Received {
+    /// `f cos L`: the unshadowed integrand in solid angle.
+    pub radiance: Vec3,
+    /// The target function in the light point's measure (`lum(f cos L) G`).
+    pub target: f32,
+    pub light: LightSample,
+}
+
+impl Receiver {
+    /// The receiver of first hit `v`, seen along `ray_dir`; `None` for surfaces next event
+    /// estimation does not light (delta BSDFs).
+    pub fn new(tracer: &PathTracer, v: &Vertex, ray_dir: Vec3) -> Option<Self> {
+        let bsdf = tracer.world.bsdf(v.surface.material, &v.shading.params);
+        (!bsdf.is_delta()).then_some(Self {
+            surface: v.surface,
+            bsdf,
+            wo: -ray_dir,
+            transmits: v.shading.params.transmission > 0.0,
+        })
+    }
+
+    /// Light point `point` as this receiver sees it (unshadowed); `None` where it brings
+    /// nothing.
+    #[inline]
+    pub fn receive(&self, lights: &Lights, point: &LightPoint) -> Option<Received> {
+        let s = &self.surface;
+        let ls = lights.evaluate(s.p, point)?;
+        let same_side = ls.wi.dot(s.ng) * self.wo.dot(s.ng) > 0.0;
+        if !(same_side || self.transmits) {
+            return None;
+        }
+        let wi_local = s.to_local(ls.wi);
+        let f = self.bsdf.eval(s.to_local(self.wo), wi_local);
+        let radiance = f * wi_local.z.abs() * ls.radiance;
+        let g = lights.point_pdf(point) / ls.pdf;
+        let target = luminance(radiance) * g;
+        (target > 0.0 && target.is_finite()).then_some(Received {
+            radiance,
+            target,
+            light: ls,
+        })
+    }
+
+    /// Resampled importance sampling of `count` light samples (chosen by the lights'
+    /// selection, then uniformly on the light) by their target here.
+    pub fn candidates(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
+        Reservoir::resample(
+            count,
+            rng,
+            |rng| {
+                let (light, _) = lights.choose(rng.next_f32())?;
+                let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                let point = lights.sample_point(light, u)?;
+                Some((point, lights.point_pdf(&point)))
+            },
+            |point| self.target(lights, point),
+        )
+    }
+
+    /// The target function of `point` here (0 where it brings nothing).
+    #[inline]
+    pub fn target(&self, lights: &Lights, point: &LightPoint) -> f32 {
+        self.receive(lights, point).map_or(0.0, |r| r.target)
+    }
+
+    /// The shadow ray toward a received sample: the fraction of its light that arrives.
+    #[inline]
+    fn visibility(&self, tracer: &PathTracer, r: &Received, rays: &mut u32) -> f32 {
+        tracer.transmittance(&self.surface, r.light.wi, r.light.distance, rays)
+    }
+
+    /// `point` is visible (and lit) from here.
+    #[inline]
+    fn sees(&self, tracer: &PathTracer, point: &LightPoint, rays: &mut u32) -> bool {
+        self.receive(&tracer.world.lights, point)
+            .is_some_and(|r| self.visibility(tracer, &r, rays) > 0.0)
+    }
+
+    /// The direct light the reservoir's sample brings here, shadow ray included.
+    pub fn shade(&self, tracer: &PathTracer, r: &Reservoir, rays: &mut u32) -> Vec3 {
+        if r.weight <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let lights = &tracer.world.lights;
+        let Some(rec) = self.receive(lights, &r.sample) else {
+            return Vec3::ZERO;
+        };
+        let tr = self.visibility(tracer, &rec, rays);
+        if tr <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let g = rec.target / luminance(rec.radiance);
+        rec.radiance * (g * r.weight * tr)
+    }
+}
+
+/// ReSTIR's per-pixel state across frames.
+#[derive(Debug, Default)]
+pub struct Restir {
+    /// This frame's reservoirs (after the spatial pass: the ones shading uses).
+    pub reservoirs: Vec<Reservoir>,
+    /// Scratch for the spatial iterations.
+    scratch: Vec<Reservoir>,
+    /// This frame's receivers (`None`: sky or delta surface).
+    pub receivers: Vec<Option<Receiver>>,
+    /// The previous frame's final reservoirs, receivers and G-buffer, for temporal reuse.
+    previous: Vec<Reservoir>,
+    previous_receivers: Vec<Option<Receiver>>,
+    previous_gbuffer: Vec<GPixel>,
+    /// The previous frame's state is usable (same resolution, same epoch's world).
+    valid: bool,
+}
+
+/// What the ReSTIR passes did, for the frame report.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RestirTimes {
+    pub candidates_ms: f64,
+    pub temporal_ms: f64,
+    pub spatial_ms: f64,
+    pub rays: u64,
+}
+
+/// The random stream of pixel `pixel`'s pass `pass` (0 candidates, 1 temporal, 2.. spatial
+/// iterations) at sample index `index`.
+#[inline]
+fn pixel_rng(seed: u64, pixel: usize, pass: u64, index: u32) -> Rng {
+    Rng::new(
+        hash(&[seed, pixel as u64, CANDIDATES_STREAM + pass]),
+        index as u64,
+    )
+}
+
+/// Surfaces close enough to share samples: relative depth and normal tests.
+#[inline]
+fn similar(a: &GPixel, b: &GPixel, config: &RestirConfig) -> bool {
+    !a.is_sky()
+        && !b.is_sky()
+        && (a.depth - b.depth).abs() <= config.depth_threshold * a.depth
+        && a.normal.dot(b.normal) >= config.normal_threshold
+}
+
+impl Restir {
+    /// Forgets the previous frame (a new epoch, or a resize).
+    pub fn reset(&mut self) {
+        self.valid = false;
+    }
+
+    /// Bytes held per pixel buffers.
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        (self.reservoirs.capacity() + self.scratch.capacity() + self.previous.capacity())
+            * size_of::<Reservoir>()
+            + (self.receivers.capacity() + self.previous_receivers.capacity())
+                * size_of::<Option<Receiver>>()
+            + self.previous_gbuffer.capacity() * size_of::<GPixel>()
+    }
+
+    /// The candidates, temporal and spatial passes for a frame whose first hits (sample
+    /// `index` of every pixel) are `firsts` (with their ray directions) and G-buffer
+    /// `gbuffer`; leaves the reservoirs to shade with in [`reservoirs`](Self::reservoirs).
+    pub fn run(
+        &mut self,
+        tracer: &PathTracer,
+        config: &RestirConfig,
+        gbuffer: &[GPixel],
+        width: u32,
+        index: u32,
+        firsts: impl IndexedParallelIterator<Item = Option<(Vertex, Vec3)>>,
+    ) -> RestirTimes {
+        let n = gbuffer.len();
+        let seed = tracer.config.seed;
+        let lights = &tracer.world.lights;
+        let mut times = RestirTimes::default();
+        if self.previous.len() != n {
+            self.valid = false;
+        }
+        let t = std::time::Instant::now();
+        firsts
+            .map(|f| f.and_then(|(v, dir)| Receiver::new(tracer, &v, dir)))
+            .collect_into_vec(&mut self.receivers);
+        self.reservoirs.resize(n, Reservoir::default());
+        let candidates = config.candidates;
+        let visibility = config.visibility_reuse;
+        let unbiased = config.unbiased;
+        times.rays += self
+            .reservoirs
+            .par_iter_mut()
+            .zip(self.receivers.par_iter())
+            .enumerate()
+            .map(|(pixel, (r, receiver))| {
+                *r = Reservoir::default();
+                let Some(receiver) = receiver else {
+                    return 0u64;
+                };
+                let mut rng = pixel_rng(seed, pixel, 0, index);
+                *r = receiver.candidates(lights, candidates, &mut rng);
+                let mut rays = 0;
+                if (visibility || unbiased)
+                    && r.weight > 0.0
+                    && !receiver.sees(tracer, &r.sample, &mut rays)
+                {
+                    r.weight = 0.0;
+                }
+                rays as u64
+            })
+            .sum::<u64>();
+        times.candidates_ms = t.elapsed().as_secs_f64() * 1e3;
+
+        let t = std::time::Instant::now();
+        if config.temporal && self.valid {
+            times.rays += self.temporal(tracer, config, gbuffer, width, index);
+        }
+        times.temporal_ms = t.elapsed().as_secs_f64() * 1e3;
+
+        let t = std::time::Instant::now();
+        if config.spatial {
+            for iteration in 0..config.iterations {
+                times.rays += self.spatial(tracer, config, gbuffer, width, index, iteration);
+            }
+        }
+        times.spatial_ms = t.elapsed().as_secs_f64() * 1e3;
+        times
+    }
+
+    /// The reservoirs the last frame shaded with (after [`keep`](Self::keep)).
+    pub fn shaded(&self) -> &[Reservoir] {
+        &self.previous
+    }
+
+    /// After shading: this frame's reservoirs, receivers and G-buffer become the previous
+    /// frame's.
+    pub fn keep(&mut self, gbuffer: &[GPixel]) {
+        std::mem::swap(&mut self.previous, &mut self.reservoirs);
+        std::mem::swap(&mut self.previous_receivers, &mut self.receivers);
+        self.previous_gbuffer.clear();
+        self.previous_gbuffer.extend_from_slice(gbuffer);
+        self.valid = true;
+    }
+
+    /// Combines reservoir `own` of `receiver` with `others` (each with its pixel's receiver),
+    /// `W` by the plain or the unbiased combination; returns the combined reservoir.
+    fn combine(
+        tracer: &PathTracer,
+        unbiased: bool,
+        receiver: &Receiver,
+        own: &Reservoir,
+        others: &[(Reservoir, &Receiver)],
+        rng: &mut Rng,
+        rays: &mut u32,
+    ) -> Reservoir {
+        let lights = &tracer.world.lights;
+        let mut s = Reservoir::default();
+        s.update(
+            own.sample,
+            own.target * own.weight * own.m,
+            own.target,
+            own.m,
+            rng.next_f32(),
+        );
+        for (q, _) in others {
+            let t = if q.weight > 0.0 {
+                receiver.target(lights, &q.sample)
+            } else {
+                0.0
+            };
+            s.update(q.sample, t * q.weight * q.m, t, q.m, rng.next_f32());
+        }
+        let z = if unbiased && s.target > 0.0 {
+            // A reservoir holds only samples its own pixel sees (or none): a survivor hidden
+            // from here would shade nothing here, and kept, it would break the count below
+            // for the next frame.
+            if !receiver.sees(tracer, &s.sample, rays) {
+                return Reservoir { weight: 0.0, ..s };
+            }
+            // The reservoirs whose own pixel could have produced the survivor: those that
+            // see it.
+            let mut z = own.m;
+            for (q, r) in others {
+                if q.m > 0.0 && r.sees(tracer, &s.sample, rays) {
+                    z += q.m;
+                }
+            }
+            z
+        } else {
+            s.m
+        };
+        s.finish(z);
+        s
+    }
+
+    /// Temporal reuse: each reservoir combined with the previous frame's at the pixel its
+    /// motion vector points to.
+    fn temporal(
+        &mut self,
+        tracer: &PathTracer,
+        config: &RestirConfig,
+        gbuffer: &[GPixel],
+        width: u32,
+        index: u32,
+    ) -> u64 {
+        let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
+        let seed = tracer.config.seed;
+        let previous = &self.previous;
+        let previous_receivers = &self.previous_receivers;
+        let previous_gbuffer = &self.previous_gbuffer;
+        self.reservoirs
+            .par_iter_mut()
+            .zip(self.receivers.par_iter())
+            .enumerate()
+            .map(|(pixel, (r, receiver))| {
+                let Some(receiver) = receiver else {
+                    return 0;
+                };
+                let g = &gbuffer[pixel];
+                let (x, y) = ((pixel as i64 % w) as f32, (pixel as i64 / w) as f32);
+                let at = Vec2::new(x, y) + g.motion;
+                let (px, py) = (at.x.round() as i64, at.y.round() as i64);
+                if px < 0 || py < 0 || px >= w || py >= h {
+                    return 0;
+                }
+                let q = (py * w + px) as usize;
+                let (Some(prev_receiver), pg) = (&previous_receivers[q], &previous_gbuffer[q])
+                else {
+                    return 0;
+                };
+                if pg.position.distance(g.position) > config.depth_threshold * g.depth
+                    || pg.normal.dot(g.normal) < config.normal_threshold
+                    || (pg.albedo - g.albedo).abs().max_element() > ALBEDO_TOLERANCE
+                {
+                    return 0;
+                }
+                let mut prev = previous[q];
+                if config.m_cap > 0 {
+                    prev.m = prev.m.min(config.m_cap as f32 * r.m.max(1.0));
+                }
+                let mut rng = pixel_rng(seed, pixel, 1, index);
+                let mut rays = 0;
+                *r = Self::combine(
+                    tracer,
+                    config.unbiased,
+                    receiver,
+                    r,
+                    &[(prev, prev_receiver)],
+                    &mut rng,
+                    &mut rays,
+                );
+                rays as u64
+            })
+            .sum()
+    }
+
+    /// One spatial iteration: each reservoir combined with `neighbours` others within
+    /// `radius` pixels that pass the depth and normal tests.
+    fn spatial(
+        &mut self,
+        tracer: &PathTracer,
+        config: &RestirConfig,
+        gbuffer: &[GPixel],
+        width: u32,
+        index: u32,
+        iteration: u32,
+    ) -> u64 {
+        let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
+        let seed = tracer.config.seed;
+        self.scratch
+            .resize(self.reservoirs.len(), Reservoir::default());
+        let input = &self.reservoirs;
+        let receivers = &self.receivers;
+        let rays = self
+            .scratch
+            .par_iter_mut()
+            .enumerate()
+            .map(|(pixel, out)| {
+                *out = input[pixel];
+                let Some(receiver) = &receivers[pixel] else {
+                    return 0;
+                };
+                let g = &gbuffer[pixel];
+                let (x, y) = (pixel as i64 % w, pixel as i64 / w);
+                let mut rng = pixel_rng(seed, pixel, 2 + iteration as u64, index);
+                let mut others: [(Reservoir, &Receiver); MAX_NEIGHBOURS as usize] =
+                    [(Reservoir::default(), receiver); MAX_NEIGHBOURS as usize];
+                let mut k = 0;
+                for _ in 0..config.neighbours {
+                    // Uniform in the disk of the radius.
+                    let r = config.radius * rng.next_f32().sqrt();
+                    let phi = std::f32::consts::TAU * rng.next_f32();
+                    let (nx, ny) = (
+                        x + (r * phi.cos()).round() as i64,
+                        y + (r * phi.sin()).round() as i64,
+                    );
+                    if nx < 0 || ny < 0 || nx >= w || ny >= h || (nx, ny) == (x, y) {
+                        continue;
+                    }
+                    let q = (ny * w + nx) as usize;
+                    let Some(other) = &receivers[q] else {
+                        continue;
+                    };
+                    if !similar(g, &gbuffer[q], config) {
+                        continue;
+                    }
+                    others[k] = (input[q], other);
+                    k += 1;
+                }
+                let mut rays = 0;
+                *out = Self::combine(
+                    tracer,
+                    config.unbiased,
+                    receiver,
+                    &input[pixel],
+                    &others[..k],
+                    &mut rng,
+                    &mut rays,
+                );
+                rays as u64
+            })
+            .sum();
+        std::mem::swap(&mut self.reservoirs, &mut self.scratch);
+        rays
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,311 @@
+//! ReSTIR's reservoirs against closed forms: RIS's mean on a discrete sum and on Lambert's
+//! polygon irradiance, the survivor's distribution after merging (chi-squared), and reuse
+//! that never crosses a depth edge.
+
+use glam::{Mat4, Vec2, Vec3};
+use pathlight_core::rng::Rng;
+use pathlight_scene::Scene;
+
+use super::*;
+use crate::bsdf::{Bsdf, BsdfParams};
+use crate::config::Config;
+use crate::light::tests::{emissive_material, instance, mesh, polygon_irradiance};
+use crate::light::LightSelection;
+use crate::world::World;
+
+fn point(light: u32) -> LightPoint {
+    LightPoint {
+        light,
+        ..LightPoint::default()
+    }
+}
+
+/// Mean and standard error of `n` draws.
+fn mean_and_error(n: usize, mut draw: impl FnMut() -> Vec3) -> (Vec3, Vec3) {
+    let (mut sum, mut sum2) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+    for _ in 0..n {
+        let v = draw().as_dvec3();
+        sum += v;
+        sum2 += v * v;
+    }
+    let mean = sum / n as f64;
+    let var = (sum2 / n as f64 - mean * mean).max(glam::DVec3::ZERO);
+    (mean.as_vec3(), (var / n as f64).sqrt().as_vec3())
+}
+
+#[test]
+fn ris_estimates_a_known_sum_for_any_candidate_count() {
+    // f over 16 values; a uniform source; the target only an approximation of f (its square
+    // root), positive wherever f is: the estimator f(y) W is unbiased for any M.
+    let f: Vec<f32> = (0..16)
+        .map(|i| 0.2 + ((i * 7) % 5) as f32 * (i as f32 * 0.3))
+        .collect();
+    let exact: f32 = f.iter().sum();
+    for candidates in [1, 2, 8, 32] {
+        let mut rng = Rng::new(candidates as u64, 1);
+        let (mean, err) = mean_and_error(40_000, || {
+            let r = Reservoir::resample(
+                candidates,
+                &mut rng,
+                |rng| Some((point(((rng.next_f32() * 16.0) as u32).min(15)), 1.0 / 16.0)),
+                |p| f[p.light as usize].sqrt(),
+            );
+            assert_eq!(r.m, candidates as f32);
+            Vec3::splat(f[r.sample.light as usize] * r.weight)
+        });
+        assert!(
+            (mean.x - exact).abs() <= 4.0 * err.x,
+            "M = {candidates}: {} +- {} vs {exact}",
+            mean.x,
+            err.x
+        );
+    }
+}
+
+#[test]
+fn merged_reservoirs_keep_a_candidate_in_proportion_to_its_weight() {
+    // 32 candidates streamed into 4 reservoirs of 8, then the 4 merged (as reuse merges
+    // reservoirs of one target): the survivor is candidate i with probability w_i / sum w.
+    let w: Vec<f32> = (0..32).map(|i| 0.1 + ((i * 13) % 7) as f32).collect();
+    let total: f32 = w.iter().sum();
+    let trials = 200_000;
+    let mut counts = [0u32; 32];
+    let mut rng = Rng::new(5, 9);
+    for _ in 0..trials {
+        let mut parts = [Reservoir::default(); 4];
+        for (j, part) in parts.iter_mut().enumerate() {
+            for k in 0..8 {
+                let i = j * 8 + k;
+                part.update(point(i as u32), w[i], w[i], 1.0, rng.next_f32());
+            }
+        }
+        let mut merged = Reservoir::default();
+        for part in &parts {
+            merged.update(part.sample, part.w_sum, part.target, part.m, rng.next_f32());
+        }
+        assert_eq!(merged.m, 32.0);
+        counts[merged.sample.light as usize] += 1;
+    }
+    let chi2: f64 = counts
+        .iter()
+        .zip(&w)
+        .map(|(&c, &wi)| {
+            let e = trials as f64 * (wi / total) as f64;
+            (c as f64 - e).powi(2) / e
+        })
+        .sum();
+    // The chi-squared distribution's 0.999 quantile with 31 degrees of freedom.
+    assert!(chi2 < 61.1, "chi2 = {chi2}");
+}
+
+const QUAD: [Vec3; 4] = [
+    Vec3::new(-0.5, 0.0, -0.5),
+    Vec3::new(0.5, 0.0, -0.5),
+    Vec3::new(0.5, 0.0, 0.5),
+    Vec3::new(-0.5, 0.0, 0.5),
+];
+/// Where the two emissive quads of [`lit_world`] are, and their radiance.
+const LIGHTS: [(Vec3, Vec3); 2] = [
+    (Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 0.5, 0.25)),
+    (Vec3::new(1.6, 1.2, 0.3), Vec3::new(3.0, 4.0, 5.0)),
+];
+
+/// Two two-sided emissive quads above the origin, side by side (neither hides the other
+/// from the origin).
+fn lit_world() -> World {
+    let mut scene = Scene {
+        meshes: vec![
+            mesh(QUAD.to_vec(), vec![[0, 1, 2], [0, 2, 3]], 0),
+            mesh(QUAD.to_vec(), vec![[0, 1, 2], [0, 2, 3]], 1),
+        ],
+        instances: LIGHTS
+            .iter()
+            .enumerate()
+            .map(|(i, (at, _))| instance(i as u32, Mat4::from_translation(*at)))
+            .collect(),
+        materials: LIGHTS
+            .iter()
+            .map(|(_, le)| emissive_material(*le, true))
+            .collect(),
+        ..Scene::default()
+    };
+    scene.collect_emissive_triangles();
+    World::new(scene, LightSelection::Power)
+}
+
+/// A Lambertian receiver at the origin facing +y, seen from `wo`.
+fn receiver(albedo: f32) -> Receiver {
+    Receiver {
+        surface: Surface {
+            p: Vec3::ZERO,
+            ng: Vec3::Y,
+            ns: Vec3::Y,
+            t: Vec3::X,
+            b: Vec3::NEG_Z,
+            front: true,
+            instance: u32::MAX,
+            triangle: u32::MAX,
+            bary: Vec2::ZERO,
+            material: 0,
+        },
+        bsdf: Bsdf::new(&BsdfParams::lambertian(Vec3::splat(albedo))),
+        wo: Vec3::new(0.3, 1.0, 0.2).normalize(),
+        transmits: false,
+    }
+}
+
+#[test]
+fn ris_shading_matches_lambert_irradiance_for_any_candidate_count() {
+    let world = lit_world();
+    let config = Config::default();
+    let camera = world.camera(&config);
+    let tracer = PathTracer {
+        world: &world,
+        camera: &camera,
+        config: &config,
+    };
+    let albedo = 0.8;
+    let rec = receiver(albedo);
+    // Lambert: radiance = albedo / pi * sum of Le E.
+    let expected: Vec3 = LIGHTS
+        .iter()
+        .map(|(at, le)| {
+            let corners: Vec<Vec3> = QUAD.iter().map(|c| *c + *at).collect();
+            *le * polygon_irradiance(Vec3::ZERO, Vec3::Y, &corners) as f32
+        })
+        .sum::<Vec3>()
+        * (albedo / std::f32::consts::PI);
+    for candidates in [1, 4, 32] {
+        let mut rng = Rng::new(candidates as u64, 3);
+        let (mean, err) = mean_and_error(30_000, || {
+            let r = rec.candidates(&world.lights, candidates, &mut rng);
+            let mut rays = 0;
+            rec.shade(&tracer, &r, &mut rays)
+        });
+        for c in 0..3 {
+            assert!(
+                (mean[c] - expected[c]).abs() <= 4.0 * err[c] + 1e-4 * expected[c],
+                "M = {candidates}: {mean} +- {err} vs {expected}"
+            );
+        }
+    }
+}
+
+/// A 16 x 4 frame split by a depth edge: the left half at depth 1 holds samples of the first
+/// light (its triangles 0 and 1), the right half at depth 3 samples of the second (2 and 3).
+fn edge(world: &World) -> (Restir, Vec<GPixel>) {
+    let (w, h) = (16usize, 4usize);
+    let rec = receiver(0.5);
+    let lights = &world.lights;
+    let mut restir = Restir::default();
+    let mut gbuffer = Vec::new();
+    for p in 0..w * h {
+        let left = p % w < w / 2;
+        gbuffer.push(GPixel {
+            position: Vec3::new((p % w) as f32, 0.0, 0.0),
+            normal: Vec3::Y,
+            albedo: Vec3::splat(0.5),
+            material: 0,
+            depth: if left { 1.0 } else { 3.0 },
+            ..GPixel::default()
+        });
+        let light = if left {
+            (p % 2) as u32
+        } else {
+            2 + (p % 2) as u32
+        };
+        let sample = lights
+            .sample_point(light as usize, Vec2::splat(0.3))
+            .unwrap();
+        let target = rec.target(lights, &sample);
+        assert!(target > 0.0);
+        restir.reservoirs.push(Reservoir {
+            sample,
+            w_sum: target,
+            m: 1.0,
+            target,
+            weight: 1.0,
+        });
+        restir.receivers.push(Some(rec));
+    }
+    (restir, gbuffer)
+}
+
+#[test]
+fn spatial_reuse_never_crosses_a_depth_edge() {
+    let world = lit_world();
+    let config = Config::default();
+    let camera = world.camera(&config);
+    let tracer = PathTracer {
+        world: &world,
+        camera: &camera,
+        config: &config,
+    };
+    for unbiased in [false, true] {
+        let (mut restir, gbuffer) = edge(&world);
+        let settings = RestirConfig {
+            enabled: true,
+            radius: 4.0,
+            neighbours: 8,
+            unbiased,
+            ..RestirConfig::default()
+        };
+        for iteration in 0..2 {
+            restir.spatial(&tracer, &settings, &gbuffer, 16, 0, iteration);
+        }
+        let mut reused = 0;
+        for (p, r) in restir.reservoirs.iter().enumerate() {
+            let left = p % 16 < 8;
+            assert_eq!(r.sample.light < 2, left, "pixel {p}: {r:?}");
+            reused += usize::from(r.m > 1.0);
+        }
+        // Reuse did happen within each side.
+        assert!(reused > 48, "{reused} of 64 reservoirs reused");
+    }
+}
+
+#[test]
+fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
+    let world = lit_world();
+    let config = Config::default();
+    let camera = world.camera(&config);
+    let tracer = PathTracer {
+        world: &world,
+        camera: &camera,
+        config: &config,
+    };
+    let (mut restir, gbuffer) = edge(&world);
+    // Last frame: the same edge, with every reservoir's sample swapped to the other light,
+    // and twice the candidates behind it.
+    restir.previous = restir.reservoirs.clone();
+    for (p, prev) in restir.previous.iter_mut().enumerate() {
+        // Left pixels remember a right-half sample and vice versa.
+        let other = restir.reservoirs[(p + 8) % 16 + (p / 16) * 16];
+        *prev = Reservoir { m: 2.0, ..other };
+    }
+    restir.previous_receivers = restir.receivers.clone();
+    restir.previous_gbuffer = gbuffer.clone();
+    restir.valid = true;
+    // This frame: the left half moved by 8 pixels (its previous pixel lies in the right half,
+    // across the edge); the right half did not move (same surface).
+    let mut moved = gbuffer.clone();
+    for (p, g) in moved.iter_mut().enumerate() {
+        if p % 16 < 8 {
+            g.motion = Vec2::new(8.0, 0.0);
+        }
+    }
+    let settings = RestirConfig {
+        enabled: true,
+        ..RestirConfig::default()
+    };
+    restir.temporal(&tracer, &settings, &moved, 16, 0);
+    for (p, r) in restir.reservoirs.iter().enumerate() {
+        if p % 16 < 8 {
+            // Rejected: its own sample, alone.
+            assert!(r.sample.light < 2 && r.m == 1.0, "pixel {p}: {r:?}");
+        } else {
+            // Accepted: the previous reservoir's candidates count (capped at 20 x 1).
+            assert_eq!(r.m, 3.0, "pixel {p}: {r:?}");
+        }
+    }
+}
