@@ -462,7 +462,8 @@ impl Lights {
     #[inline]
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
         let (index, select) = self.choose(u_select)?;
-        self.evaluate_selected(p, &self.sample_point(index, u)?, select)
+        let (ls, _) = self.evaluate_selected(p, &self.sample_point(index, u)?, select)?;
+        Some(ls)
     }
 
     /// Picks a light: its index and the probability of picking it.
@@ -508,6 +509,31 @@ impl Lights {
         }
     }
 
+    /// [`choose`](Self::choose) then [`sample_point`](Self::sample_point), with the point's
+    /// density [`point_pdf`](Self::point_pdf) (seed 004's candidates).
+    #[inline]
+    pub fn draw(&self, u_select: f32, u: Vec2) -> Option<(LightPoint, f32)> {
+        let (index, select) = self.choose(u_select)?;
+        let point = self.sample_point(index, u)?;
+        let pdf = match self.triangles.get(index) {
+            Some(t) => select / t.area,
+            None if index - self.triangles.len() < self.punctual.len() => select,
+            None => self.point_pdf(&point),
+        };
+        Some((point, pdf))
+    }
+
+    /// [`evaluate`](Self::evaluate) and the geometry term that converts the point's measure to
+    /// solid angle at `p` (`point_pdf / pdf`): `cos_light / d^2` on triangles, 1 elsewhere.
+    #[inline]
+    pub fn evaluate_geometry(&self, p: Vec3, point: &LightPoint) -> Option<(LightSample, f32)> {
+        if point.light as usize >= self.count {
+            return None;
+        }
+        let select = self.selection_pmf(point.light as usize);
+        self.evaluate_selected(p, point, select)
+    }
+
     /// `point` (from [`sample_point`](Self::sample_point)) as seen from `p`: direction,
     /// distance, radiance, and the solid-angle density (selection included) with which
     /// [`sample`](Self::sample) at `p` returns it. `None` where `p` is behind a one-sided
@@ -518,7 +544,7 @@ impl Lights {
             return None;
         }
         let select = self.selection_pmf(point.light as usize);
-        self.evaluate_selected(p, point, select)
+        self.evaluate_selected(p, point, select).map(|(ls, _)| ls)
     }
 
     /// The density with which [`choose`](Self::choose) then
@@ -546,26 +572,36 @@ impl Lights {
         }
     }
 
+    /// The point seen from `p` with selection probability `select`, and its geometry term
+    /// ([`evaluate_geometry`](Self::evaluate_geometry)).
     #[inline]
-    fn evaluate_selected(&self, p: Vec3, point: &LightPoint, select: f32) -> Option<LightSample> {
+    fn evaluate_selected(
+        &self,
+        p: Vec3,
+        point: &LightPoint,
+        select: f32,
+    ) -> Option<(LightSample, f32)> {
         let index = point.light as usize;
         let n_tri = self.triangles.len();
-        let sample = if let Some(t) = self.triangles.get(index) {
+        let (sample, g) = if let Some(t) = self.triangles.get(index) {
             let (wi, distance, pdf) = solid_angle(t, p, point.point)?;
-            LightSample {
-                wi,
-                distance,
-                radiance: self.triangle_radiance(t, point.bary),
-                pdf: select * pdf,
-                delta: false,
-            }
+            (
+                LightSample {
+                    wi,
+                    distance,
+                    radiance: self.triangle_radiance(t, point.bary),
+                    pdf: select * pdf,
+                    delta: false,
+                },
+                1.0 / (t.area * pdf),
+            )
         } else if let Some(light) = self.punctual.get(index - n_tri) {
-            sample_punctual(light, p, select)?
+            (sample_punctual(light, p, select)?, 1.0)
         } else {
-            self.environment_sample(point.point, select)?
+            (self.environment_sample(point.point, select)?, 1.0)
         };
         (sample.radiance.max_element() > 0.0 && sample.pdf > 0.0 && sample.pdf.is_finite())
-            .then_some(sample)
+            .then_some((sample, g))
     }
 
     #[inline]

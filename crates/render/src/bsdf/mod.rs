@@ -177,6 +177,14 @@ pub struct Bsdf {
     lambertian: bool,
 }
 
+/// A BSDF's per-`wo` quantities ([`Bsdf::at`]).
+#[derive(Debug, Clone, Copy)]
+pub struct BsdfAt {
+    wo: Vec3,
+    /// `None` for the Lambertian short path, or where `wo` is grazing or not finite.
+    lobes: Option<Lobes>,
+}
+
 /// Per-`wo` quantities shared by eval, pdf and sample.
 #[derive(Debug, Clone, Copy)]
 struct Lobes {
@@ -377,9 +385,9 @@ impl Bsdf {
         })
     }
 
-    /// f and pdf of the non-delta lobes.
+    /// f and (with `PDF`) pdf of the non-delta lobes.
     #[inline]
-    fn eval_pdf_lobes(&self, lo: &Lobes, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    fn eval_pdf_lobes<const PDF: bool>(&self, lo: &Lobes, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let cos_o = wo.z;
         let cos_i = wi.z;
         let mut f = Vec3::ZERO;
@@ -401,7 +409,9 @@ impl Bsdf {
                 let g2 = self.ndf.g2_with(lo.lambda_o, wi);
                 if c > 0.0 {
                     f += fr * (d * g2 / (4.0 * (cos_o * cos_i).abs()));
-                    pdf += lo.p_r * self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, h) / (4.0 * c);
+                    if PDF {
+                        pdf += lo.p_r * self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, h) / (4.0 * c);
+                    }
                 }
             }
             if diffuse {
@@ -409,7 +419,9 @@ impl Bsdf {
                     * lo.diel_t
                     * (1.0 - self.diel_fresnel_max(cos_i.abs().min(1.0), lo.etap));
                 f += self.base * (k * FRAC_1_PI);
-                pdf += lo.p_d * cos_i.abs() * FRAC_1_PI;
+                if PDF {
+                    pdf += lo.p_d * cos_i.abs() * FRAC_1_PI;
+                }
             }
         } else if self.w_trans > 0.0 && !self.trans_delta && lo.p_t > 0.0 {
             if self.refracts {
@@ -440,7 +452,10 @@ impl Bsdf {
                 let ft = self.w_trans * t * d * g2 * (d_i * d_o).abs()
                     / ((cos_i * cos_o).abs() * denom2 * etap * etap);
                 f += self.base * ft;
-                pdf += lo.p_t * self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, m) * d_i.abs() / denom2;
+                if PDF {
+                    pdf +=
+                        lo.p_t * self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, m) * d_i.abs() / denom2;
+                }
             } else {
                 // Thin-walled: the reflection lobe mirrored through the surface plane.
                 let wr = Vec3::new(wi.x, wi.y, -wi.z);
@@ -453,7 +468,9 @@ impl Bsdf {
                 let d = self.ndf.d(h);
                 let g2 = self.ndf.g2_with(lo.lambda_o, wi);
                 f += self.base * (self.w_trans * t * d * g2 / (4.0 * (cos_o * cos_i).abs()));
-                pdf += lo.p_t * self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, h) / (4.0 * c);
+                if PDF {
+                    pdf += lo.p_t * self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, h) / (4.0 * c);
+                }
             }
         }
         (f, pdf)
@@ -479,8 +496,35 @@ impl Bsdf {
             return self.lambertian_eval_pdf(wo, wi);
         }
         match self.lobes(wo) {
-            Some(lo) => self.eval_pdf_lobes(&lo, wo, wi),
+            Some(lo) => self.eval_pdf_lobes::<true>(&lo, wo, wi),
             None => (Vec3::ZERO, 0.0),
+        }
+    }
+
+    /// The BSDF seen from `wo`: what depends on `wo` alone computed once, for
+    /// [`eval_at`](Self::eval_at) over many incident directions (seed 004's light candidates).
+    #[inline]
+    pub fn at(&self, wo: Vec3) -> BsdfAt {
+        BsdfAt {
+            wo,
+            lobes: if self.lambertian {
+                None
+            } else {
+                self.lobes(wo)
+            },
+        }
+    }
+
+    /// f(wo, wi) of the non-delta lobes (no cosine), `wo` the direction of `at`: exactly
+    /// [`eval`](Self::eval)'s value, without the densities.
+    #[inline]
+    pub fn eval_at(&self, at: &BsdfAt, wi: Vec3) -> Vec3 {
+        if self.lambertian {
+            return self.lambertian_eval_pdf(at.wo, wi).0;
+        }
+        match &at.lobes {
+            Some(lo) => self.eval_pdf_lobes::<false>(lo, at.wo, wi).0,
+            None => Vec3::ZERO,
         }
     }
 
@@ -571,7 +615,7 @@ impl Bsdf {
                 }
             }
         };
-        let (f, pdf) = self.eval_pdf_lobes(&lo, wo, wi);
+        let (f, pdf) = self.eval_pdf_lobes::<true>(&lo, wo, wi);
         if !positive(pdf) || !pdf.is_finite() {
             return None;
         }

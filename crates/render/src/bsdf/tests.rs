@@ -567,6 +567,10 @@ fn sample_agrees_with_eval_and_pdf() {
             }
             let (f, pdf) = bsdf.eval_pdf(wo, s.wi);
             assert_eq!(f, bsdf.eval(wo, s.wi));
+            // Seeing the BSDF from `wo` once changes no value.
+            assert_eq!(f, bsdf.eval_at(&bsdf.at(wo), s.wi));
+            let other = sph(2.0, 1.0);
+            assert_eq!(bsdf.eval(wo, other), bsdf.eval_at(&bsdf.at(wo), other));
             assert_eq!(pdf, bsdf.pdf(wo, s.wi));
             let w_sample = s.f * s.wi.z.abs() / s.pdf;
             let w_eval = f * s.wi.z.abs() / pdf;

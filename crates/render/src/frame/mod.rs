@@ -164,7 +164,7 @@ pub struct Pipeline {
     pub restir: Restir,
     /// The frame's first hits, kept for the whole frame when ReSTIR runs (its passes need
     /// every pixel's surface before the lighting pass).
-    hits: Vec<PrimaryHit>,
+    hits: Vec<Vec<PrimaryHit>>,
     epoch: u64,
     frames: u32,
     frame_number: u64,
@@ -609,7 +609,7 @@ impl Pipeline {
         let techniques = self.adaptive.probability.capacity() * size_of::<f32>()
             + self.reprojection.bytes()
             + self.restir.bytes()
-            + self.hits.capacity() * size_of::<PrimaryHit>();
+            + self.hits.iter().map(|r| r.capacity()).sum::<usize>() * size_of::<PrimaryHit>();
         (plain, techniques)
     }
 
@@ -900,7 +900,7 @@ fn primary_run(
 fn trace_restir(
     gbuffer: &mut GBuffer,
     lighting: &mut [LightSample],
-    hits: &mut Vec<PrimaryHit>,
+    hits: &mut Vec<Vec<PrimaryHit>>,
     restir: &mut Restir,
     config: &RestirConfig,
     previous: Option<&Camera>,
@@ -910,9 +910,12 @@ fn trace_restir(
 ) -> ((u64, f64, f64), RestirTimes) {
     let w = gbuffer.width.max(1) as usize;
     let t = Instant::now();
-    let runs: Vec<(Vec<PrimaryHit>, u64)> = gbuffer
+    // The first hits by runs of pixels (each run's vector keeps its capacity across frames).
+    hits.resize_with(gbuffer.pixels.len().div_ceil(RUN), Vec::new);
+    let mut rays: u64 = gbuffer
         .pixels
         .par_chunks_mut(RUN)
+        .zip(hits.par_iter_mut())
         .enumerate()
         .map_init(
             || {
@@ -922,14 +925,14 @@ fn trace_restir(
                     Vec::with_capacity(RUN),
                 )
             },
-            |(cameras, camera_rays, first_hits), (b, gpixels)| {
+            |(cameras, camera_rays, first_hits), (b, (gpixels, out))| {
                 let start = b * RUN;
                 cameras.extend(
                     (start..start + gpixels.len())
                         .map(|p| tracer.camera_sample((p % w) as u32, (p / w) as u32, index)),
                 );
-                let mut out = Vec::with_capacity(gpixels.len());
-                let rays = primary_run(
+                out.clear();
+                primary_run(
                     tracer,
                     previous,
                     cameras,
@@ -939,17 +942,10 @@ fn trace_restir(
                         gpixels[i] = pixel;
                         out.push(hit);
                     },
-                );
-                (out, rays)
+                )
             },
         )
-        .collect();
-    hits.clear();
-    let mut rays = 0;
-    for (run, r) in runs {
-        hits.extend(run);
-        rays += r;
-    }
+        .sum();
     let primary_s = t.elapsed().as_secs_f64();
 
     let times = restir.run(
@@ -958,25 +954,31 @@ fn trace_restir(
         &gbuffer.pixels,
         gbuffer.width,
         index,
-        hits.par_iter()
-            .map(|h| h.first.map(|v| (v, h.ray.direction))),
+        hits,
+        RUN,
     );
 
     let t = Instant::now();
     let (receivers, reservoirs) = (&restir.receivers, &restir.reservoirs);
     rays += lighting
-        .par_iter_mut()
+        .par_chunks_mut(RUN)
         .zip(hits.par_iter())
         .enumerate()
-        .map(|(p, (l, hit))| {
-            let (x, y) = ((p % w) as u32, (p / w) as u32);
-            let mut shadow = 0;
-            let direct = receivers[p]
-                .as_ref()
-                .map(|rec| rec.shade(tracer, &reservoirs[p], &mut shadow));
-            let (sample, r) = lighting::lighting::<false>(tracer, x, y, hit, index, spp, direct);
-            *l = sample;
-            r + shadow as u64
+        .map(|(b, (ls, run))| {
+            let mut rays = 0;
+            for (k, (l, hit)) in ls.iter_mut().zip(run).enumerate() {
+                let p = b * RUN + k;
+                let (x, y) = ((p % w) as u32, (p / w) as u32);
+                let mut shadow = 0;
+                let direct = receivers[p]
+                    .as_ref()
+                    .map(|rec| rec.shade(tracer, &reservoirs[p], &mut shadow));
+                let (sample, r) =
+                    lighting::lighting::<false>(tracer, x, y, hit, index, spp, direct);
+                *l = sample;
+                rays += r + shadow as u64;
+            }
+            rays
         })
         .sum::<u64>();
     let lighting_s = t.elapsed().as_secs_f64();

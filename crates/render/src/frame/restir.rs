@@ -60,10 +60,12 @@ use pathlight_core::rng::{hash, Rng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, BsdfAt};
 use crate::config::ConfigError;
 use crate::light::{LightPoint, LightSample, Lights};
 use crate::path::{PathTracer, Vertex};
+
+use super::gbuffer::PrimaryHit;
 use crate::surface::Surface;
 
 use super::gbuffer::GPixel;
@@ -248,6 +250,8 @@ impl Reservoir {
 pub struct Receiver {
     pub surface: Surface,
     pub bsdf: Bsdf,
+    /// The BSDF seen from `wo` (its per-`wo` terms, computed once).
+    pub at: BsdfAt,
     /// Unit direction toward the camera.
     pub wo: Vec3,
     /// Light from behind the surface counts (transmission).
@@ -269,12 +273,25 @@ impl Receiver {
     /// estimation does not light (delta BSDFs).
     pub fn new(tracer: &PathTracer, v: &Vertex, ray_dir: Vec3) -> Option<Self> {
         let bsdf = tracer.world.bsdf(v.surface.material, &v.shading.params);
-        (!bsdf.is_delta()).then_some(Self {
-            surface: v.surface,
-            bsdf,
-            wo: -ray_dir,
-            transmits: v.shading.params.transmission > 0.0,
+        (!bsdf.is_delta()).then(|| {
+            Self::with(
+                v.surface,
+                bsdf,
+                -ray_dir,
+                v.shading.params.transmission > 0.0,
+            )
         })
+    }
+
+    /// The receiver at `surface` with `bsdf`, seen from `wo` (unit, toward the viewer).
+    pub fn with(surface: Surface, bsdf: Bsdf, wo: Vec3, transmits: bool) -> Self {
+        Self {
+            at: bsdf.at(surface.to_local(wo)),
+            surface,
+            bsdf,
+            wo,
+            transmits,
+        }
     }
 
     /// Light point `point` as this receiver sees it (unshadowed); `None` where it brings
@@ -282,15 +299,14 @@ impl Receiver {
     #[inline]
     pub fn receive(&self, lights: &Lights, point: &LightPoint) -> Option<Received> {
         let s = &self.surface;
-        let ls = lights.evaluate(s.p, point)?;
+        let (ls, g) = lights.evaluate_geometry(s.p, point)?;
         let same_side = ls.wi.dot(s.ng) * self.wo.dot(s.ng) > 0.0;
         if !(same_side || self.transmits) {
             return None;
         }
         let wi_local = s.to_local(ls.wi);
-        let f = self.bsdf.eval(s.to_local(self.wo), wi_local);
+        let f = self.bsdf.eval_at(&self.at, wi_local);
         let radiance = f * wi_local.z.abs() * ls.radiance;
-        let g = lights.point_pdf(point) / ls.pdf;
         let target = luminance(radiance) * g;
         (target > 0.0 && target.is_finite()).then_some(Received {
             radiance,
@@ -306,10 +322,8 @@ impl Receiver {
             count,
             rng,
             |rng| {
-                let (light, _) = lights.choose(rng.next_f32())?;
-                let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                let point = lights.sample_point(light, u)?;
-                Some((point, lights.point_pdf(&point)))
+                let u_select = rng.next_f32();
+                lights.draw(u_select, Vec2::new(rng.next_f32(), rng.next_f32()))
             },
             |point| self.target(lights, point),
         )
@@ -414,8 +428,8 @@ impl Restir {
     }
 
     /// The candidates, temporal and spatial passes for a frame whose first hits (sample
-    /// `index` of every pixel) are `firsts` (with their ray directions) and G-buffer
-    /// `gbuffer`; leaves the reservoirs to shade with in [`reservoirs`](Self::reservoirs).
+    /// `index` of every pixel, by runs of `run` pixels) are `firsts` and G-buffer `gbuffer`;
+    /// leaves the reservoirs to shade with in [`reservoirs`](Self::reservoirs).
     pub fn run(
         &mut self,
         tracer: &PathTracer,
@@ -423,7 +437,8 @@ impl Restir {
         gbuffer: &[GPixel],
         width: u32,
         index: u32,
-        firsts: impl IndexedParallelIterator<Item = Option<(Vertex, Vec3)>>,
+        firsts: &[Vec<PrimaryHit>],
+        run: usize,
     ) -> RestirTimes {
         let n = gbuffer.len();
         let seed = tracer.config.seed;
@@ -433,9 +448,18 @@ impl Restir {
             self.valid = false;
         }
         let t = std::time::Instant::now();
-        firsts
-            .map(|f| f.and_then(|(v, dir)| Receiver::new(tracer, &v, dir)))
-            .collect_into_vec(&mut self.receivers);
+        self.receivers.resize(n, None);
+        self.receivers
+            .par_chunks_mut(run)
+            .zip(firsts.par_iter())
+            .for_each(|(receivers, hits)| {
+                for (r, h) in receivers.iter_mut().zip(hits) {
+                    *r = h
+                        .first
+                        .as_ref()
+                        .and_then(|v| Receiver::new(tracer, v, h.ray.direction));
+                }
+            });
         self.reservoirs.resize(n, Reservoir::default());
         let candidates = config.candidates;
         let visibility = config.visibility_reuse;
@@ -651,12 +675,20 @@ impl Restir {
                         continue;
                     }
                     let q = (ny * w + nx) as usize;
-                    let Some(other) = &receivers[q] else {
-                        continue;
-                    };
-                    if !similar(g, &gbuffer[q], config) {
+                    // A pixel without a receiver has an empty reservoir (M = 0). The plain
+                    // combination never reads the neighbour's receiver (a cache miss each):
+                    // only the unbiased count does.
+                    if input[q].m == 0.0 || !similar(g, &gbuffer[q], config) {
                         continue;
                     }
+                    let other = if config.unbiased {
+                        match &receivers[q] {
+                            Some(other) => other,
+                            None => continue,
+                        }
+                    } else {
+                        receiver
+                    };
                     others[k] = (input[q], other);
                     k += 1;
                 }

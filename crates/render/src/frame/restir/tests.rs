@@ -135,8 +135,8 @@ fn lit_world() -> World {
 
 /// A Lambertian receiver at the origin facing +y, seen from `wo`.
 fn receiver(albedo: f32) -> Receiver {
-    Receiver {
-        surface: Surface {
+    Receiver::with(
+        Surface {
             p: Vec3::ZERO,
             ng: Vec3::Y,
             ns: Vec3::Y,
@@ -148,10 +148,10 @@ fn receiver(albedo: f32) -> Receiver {
             bary: Vec2::ZERO,
             material: 0,
         },
-        bsdf: Bsdf::new(&BsdfParams::lambertian(Vec3::splat(albedo))),
-        wo: Vec3::new(0.3, 1.0, 0.2).normalize(),
-        transmits: false,
-    }
+        Bsdf::new(&BsdfParams::lambertian(Vec3::splat(albedo))),
+        Vec3::new(0.3, 1.0, 0.2).normalize(),
+        false,
+    )
 }
 
 #[test]
