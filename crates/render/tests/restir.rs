@@ -7,8 +7,11 @@ mod common;
 
 use common::{in_pool, quad, scene, world};
 use glam::{DVec3, Vec3};
+use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::restir::RestirConfig;
-use pathlight_render::frame::Pipeline;
+use pathlight_render::frame::{
+    Pipeline, ACCUMULATE, LIGHTING, PRIMARY, RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL,
+};
 use pathlight_render::renderer::render;
 use pathlight_render::{Config, World};
 use pathlight_scene::Material;
@@ -143,5 +146,52 @@ fn restir_frames_do_not_depend_on_the_thread_count() {
                 .collect::<Vec<_>>()
         };
         assert!(in_pool(1, run) == in_pool(2, run));
+    }
+}
+
+#[test]
+fn restir_frames_report_their_passes_and_show_their_reservoirs() {
+    let world = occluded_lights();
+    let mut cfg = config(RestirConfig {
+        enabled: true,
+        candidates: 4,
+        ..RestirConfig::default()
+    });
+    let mut pipeline = Pipeline::new(cfg.clone());
+    for frame in 0..3 {
+        let r = pipeline.render_frame(&world);
+        let names: Vec<&str> = r.passes.iter().map(|p| p.pass).collect();
+        assert_eq!(
+            names,
+            [
+                PRIMARY,
+                RESTIR,
+                RESTIR_TEMPORAL,
+                RESTIR_SPATIAL,
+                LIGHTING,
+                ACCUMULATE
+            ]
+        );
+        // Every lit pixel resampled its 4 candidates, plus what reuse brought (temporal
+        // reuse from the second frame on).
+        let m = pipeline.restir.shaded().iter().map(|r| r.m);
+        let max = m.clone().fold(0.0, f32::max);
+        assert!(m.filter(|&m| m > 0.0).all(|m| m >= 4.0));
+        assert!(
+            max > 4.0 * (1 + frame) as f32,
+            "frame {frame}: largest M {max}"
+        );
+    }
+    for mode in [
+        DisplayMode::ReservoirM,
+        DisplayMode::ReservoirWeight,
+        DisplayMode::FrameDirect,
+    ] {
+        cfg.display.mode = mode;
+        pipeline.set_config(&cfg);
+        let mut r = pipeline.render_frame(&world);
+        pipeline.display(&mut r);
+        let distinct: std::collections::HashSet<&[u8]> = pipeline.rgba.chunks(4).collect();
+        assert!(distinct.len() >= 4, "{mode:?}: {} colours", distinct.len());
     }
 }

@@ -242,6 +242,16 @@ impl Viewer {
                 Key::OpenBracket => self.scale = (self.scale / 2f32.sqrt()).max(0.1),
                 Key::CloseBracket => self.scale = (self.scale * 2f32.sqrt()).min(2.0),
                 Key::Escape => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
+                // ReSTIR's candidates, halved and doubled within 1..1024 (the thesis's keys).
+                Key::Comma | Key::Period => {
+                    let r = &mut self.config.frame.restir;
+                    r.candidates = if key == Key::Comma {
+                        r.candidates / 2
+                    } else {
+                        r.candidates.saturating_mul(2)
+                    }
+                    .clamp(1, pathlight_render::frame::restir::MAX_CANDIDATES);
+                }
                 k => {
                     let numbers = [
                         Key::Num1,

@@ -118,7 +118,7 @@ fn display(v: &mut Viewer, ui: &mut egui::Ui) {
     egui::ComboBox::from_label("mode")
         .selected_text(format!("{} ({})", d.mode.name(), d.mode.pass()))
         .show_ui(ui, |ui| {
-            for pass in [ACCUMULATE, REPROJECT, LIGHTING, PRIMARY] {
+            for pass in [ACCUMULATE, REPROJECT, LIGHTING, RESTIR, PRIMARY] {
                 ui.label(egui::RichText::new(pass).strong());
                 for m in DisplayMode::ALL.into_iter().filter(|m| m.pass() == pass) {
                     ui.selectable_value(&mut d.mode, m, m.name());

@@ -13,6 +13,7 @@ use super::accumulation::PixelStats;
 use super::gbuffer::GBuffer;
 use super::lighting::LightSample;
 use super::reprojection::Reprojection;
+use super::restir::Reservoir;
 
 /// What is shown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -59,11 +60,19 @@ pub enum DisplayMode {
     /// seen (black), occluded (red), view-dependency error (yellow), specular (blue), aliasing
     /// depth test (magenta).
     Rejection,
+    /// Lighting: this frame's direct light alone (with ReSTIR, what the reservoirs gave).
+    FrameDirect,
+    /// ReSTIR: the candidates behind each pixel's reservoir (M), as a heat map from 0 to the
+    /// image's largest (dark grey: no reservoir).
+    ReservoirM,
+    /// ReSTIR: each reservoir's contribution weight W, as a heat map of its logarithm over the
+    /// image's range (dark grey: W = 0, no sample or an occluded one).
+    ReservoirWeight,
 }
 
 impl DisplayMode {
     /// Every mode with its pass, in menu order.
-    pub const ALL: [DisplayMode; 17] = [
+    pub const ALL: [DisplayMode; 20] = [
         DisplayMode::Final,
         DisplayMode::Noisy,
         DisplayMode::Direct,
@@ -81,6 +90,9 @@ impl DisplayMode {
         DisplayMode::Probability,
         DisplayMode::Reprojected,
         DisplayMode::Rejection,
+        DisplayMode::FrameDirect,
+        DisplayMode::ReservoirM,
+        DisplayMode::ReservoirWeight,
     ];
 
     /// The name in configurations and on the command line.
@@ -103,6 +115,9 @@ impl DisplayMode {
             DisplayMode::Probability => "probability",
             DisplayMode::Reprojected => "reprojected",
             DisplayMode::Rejection => "rejection",
+            DisplayMode::FrameDirect => "frame-direct",
+            DisplayMode::ReservoirM => "reservoir-m",
+            DisplayMode::ReservoirWeight => "reservoir-weight",
         }
     }
 
@@ -112,7 +127,8 @@ impl DisplayMode {
         match self {
             Final | Direct | Indirect | Variance | Samples | Probability => super::ACCUMULATE,
             Reprojected | Rejection => super::REPROJECT,
-            Noisy | BounceAlbedo | BounceDirection => super::LIGHTING,
+            Noisy | FrameDirect | BounceAlbedo | BounceDirection => super::LIGHTING,
+            ReservoirM | ReservoirWeight => super::RESTIR,
             Albedo | Normal | Depth | Motion | Roughness | Metallic => super::PRIMARY,
         }
     }
@@ -121,7 +137,11 @@ impl DisplayMode {
     pub fn is_radiance(self) -> bool {
         matches!(
             self,
-            DisplayMode::Final | DisplayMode::Noisy | DisplayMode::Direct | DisplayMode::Indirect
+            DisplayMode::Final
+                | DisplayMode::Noisy
+                | DisplayMode::Direct
+                | DisplayMode::Indirect
+                | DisplayMode::FrameDirect
         )
     }
 }
@@ -148,6 +168,8 @@ pub struct Sources<'a> {
     /// Adaptive sampling's probabilities (empty when it never ran).
     pub probability: &'a [f32],
     pub reprojection: &'a Reprojection,
+    /// ReSTIR's reservoirs of the last frame (empty when it never ran).
+    pub reservoirs: &'a [Reservoir],
 }
 
 impl Sources<'_> {
@@ -184,6 +206,11 @@ impl Sources<'_> {
                 Vec3::splat(kept as f32 / r.samples.max(1) as f32)
             }
             DisplayMode::Rejection => Vec3::splat(self.reprojection.fate(i) as u8 as f32),
+            DisplayMode::FrameDirect => l.stats.direct.mean,
+            DisplayMode::ReservoirM => Vec3::splat(self.reservoirs.get(i).map_or(0.0, |r| r.m)),
+            DisplayMode::ReservoirWeight => {
+                Vec3::splat(self.reservoirs.get(i).map_or(0.0, |r| r.weight))
+            }
         }
     }
 
@@ -261,6 +288,40 @@ impl Sources<'_> {
                 }
             }),
             DisplayMode::Rejection => fill(out, |i| self.reprojection.fate(i).colour()),
+            DisplayMode::ReservoirM => {
+                let max = self
+                    .reservoirs
+                    .par_iter()
+                    .map(|r| r.m)
+                    .reduce(|| 0.0, f32::max);
+                fill(out, |i| {
+                    let m = self.value(mode, i).x;
+                    if m > 0.0 {
+                        viridis(m / max)
+                    } else {
+                        [40, 40, 40]
+                    }
+                })
+            }
+            DisplayMode::ReservoirWeight => {
+                let (lo, hi) = self
+                    .reservoirs
+                    .par_iter()
+                    .filter(|r| r.weight > 0.0 && r.weight.is_finite())
+                    .map(|r| (r.weight.ln(), r.weight.ln()))
+                    .reduce(
+                        || (f32::INFINITY, f32::NEG_INFINITY),
+                        |a, b| (a.0.min(b.0), a.1.max(b.1)),
+                    );
+                fill(out, |i| {
+                    let w = self.value(mode, i).x;
+                    if w > 0.0 && w.is_finite() {
+                        viridis((w.ln() - lo) / (hi - lo).max(1e-6))
+                    } else {
+                        [40, 40, 40]
+                    }
+                })
+            }
             _ => fill(out, |i| unorm8(self.value(mode, i))),
         }
     }

@@ -621,6 +621,7 @@ impl Pipeline {
             history: &self.history,
             probability: &self.adaptive.probability,
             reprojection: &self.reprojection,
+            reservoirs: self.restir.shaded(),
         }
     }
 
@@ -948,15 +949,7 @@ fn trace_restir(
         .sum();
     let primary_s = t.elapsed().as_secs_f64();
 
-    let times = restir.run(
-        tracer,
-        config,
-        &gbuffer.pixels,
-        gbuffer.width,
-        index,
-        hits,
-        RUN,
-    );
+    let times = restir.run(tracer, config, gbuffer, index, hits, RUN);
 
     let t = Instant::now();
     let (receivers, reservoirs) = (&restir.receivers, &restir.reservoirs);

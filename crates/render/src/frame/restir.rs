@@ -65,7 +65,7 @@ use crate::config::ConfigError;
 use crate::light::{LightPoint, LightSample, Lights};
 use crate::path::{PathTracer, Vertex};
 
-use super::gbuffer::PrimaryHit;
+use super::gbuffer::{GBuffer, PrimaryHit};
 use crate::surface::Surface;
 
 use super::gbuffer::GPixel;
@@ -434,12 +434,12 @@ impl Restir {
         &mut self,
         tracer: &PathTracer,
         config: &RestirConfig,
-        gbuffer: &[GPixel],
-        width: u32,
+        gbuffer: &GBuffer,
         index: u32,
         firsts: &[Vec<PrimaryHit>],
         run: usize,
     ) -> RestirTimes {
+        let (width, gbuffer) = (gbuffer.width, &gbuffer.pixels[..]);
         let n = gbuffer.len();
         let seed = tracer.config.seed;
         let lights = &tracer.world.lights;
@@ -504,9 +504,14 @@ impl Restir {
         times
     }
 
-    /// The reservoirs the last frame shaded with (after [`keep`](Self::keep)).
+    /// The reservoirs the last frame shaded with (after [`keep`](Self::keep); empty after a
+    /// reset).
     pub fn shaded(&self) -> &[Reservoir] {
-        &self.previous
+        if self.valid {
+            &self.previous
+        } else {
+            &[]
+        }
     }
 
     /// After shading: this frame's reservoirs, receivers and G-buffer become the previous
