@@ -657,7 +657,7 @@ impl Restir {
             .scratch
             .par_iter_mut()
             .enumerate()
-            .map(|(pixel, out)| {
+            .map_init(Vec::new, |others, (pixel, out)| {
                 *out = input[pixel];
                 let Some(receiver) = &receivers[pixel] else {
                     return 0;
@@ -665,9 +665,8 @@ impl Restir {
                 let g = &gbuffer[pixel];
                 let (x, y) = (pixel as i64 % w, pixel as i64 / w);
                 let mut rng = pixel_rng(seed, pixel, 2 + iteration as u64, index);
-                let mut others: [(Reservoir, &Receiver); MAX_NEIGHBOURS as usize] =
-                    [(Reservoir::default(), receiver); MAX_NEIGHBOURS as usize];
-                let mut k = 0;
+                // The neighbours taken (a vector per thread, kept across pixels).
+                others.clear();
                 for _ in 0..config.neighbours {
                     // Uniform in the disk of the radius.
                     let r = config.radius * rng.next_f32().sqrt();
@@ -694,8 +693,7 @@ impl Restir {
                     } else {
                         receiver
                     };
-                    others[k] = (input[q], other);
-                    k += 1;
+                    others.push((input[q], other));
                 }
                 let mut rays = 0;
                 *out = Self::combine(
@@ -703,7 +701,7 @@ impl Restir {
                     config.unbiased,
                     receiver,
                     &input[pixel],
-                    &others[..k],
+                    others,
                     &mut rng,
                     &mut rays,
                 );
