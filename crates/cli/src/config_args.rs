@@ -155,6 +155,10 @@ pub struct ConfigArgs {
     /// ReSTIR: the unbiased combination (1/Z with visibility) instead of the plain one.
     #[arg(long)]
     pub restir_unbiased: bool,
+
+    /// ReSTIR: combine with the paper's MIS weights (generalised balance heuristic).
+    #[arg(long)]
+    pub restir_mis: bool,
 }
 
 fn parse_measure(s: &str) -> Result<Measure, String> {
@@ -317,6 +321,7 @@ impl ConfigArgs {
         restir.enabled |= self.restir;
         restir.candidates = self.candidates.unwrap_or(restir.candidates);
         restir.unbiased |= self.restir_unbiased;
+        restir.mis |= self.restir_mis;
         Ok(c)
     }
 }

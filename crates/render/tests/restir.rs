@@ -92,7 +92,7 @@ fn unbiased_frames_converge_to_the_reference_direct_light() {
     let reference = mean(film.pixels.iter().map(|p| p.direct + p.indirect));
     // Temporal reuse correlates the frames: one seed's 256 frames scatter by 1-2% around
     // the reference (measured over seeds 10-15), so the test averages 8 seeds.
-    let run = |unbiased| {
+    let run = |unbiased, mis| {
         let seeds = 20..28u32;
         let n = seeds.len() as f64;
         seeds
@@ -101,6 +101,7 @@ fn unbiased_frames_converge_to_the_reference_direct_light() {
                     enabled: true,
                     candidates: 8,
                     unbiased,
+                    mis,
                     ..RestirConfig::default()
                 });
                 cfg.seed = seed as u64;
@@ -109,13 +110,16 @@ fn unbiased_frames_converge_to_the_reference_direct_light() {
             .sum::<DVec3>()
             / n
     };
-    let (unbiased, biased) = (run(true), run(false));
+    let (unbiased, biased) = (run(true, false), run(false, false));
+    let mis = run(true, true);
     let rel = |m: DVec3| (m - reference) / reference;
     eprintln!(
-        "reference {reference}, unbiased {unbiased} ({}), biased {biased} ({})",
+        "reference {reference}, unbiased {unbiased} ({}), biased {biased} ({}), MIS {mis} ({})",
         rel(unbiased),
-        rel(biased)
+        rel(biased),
+        rel(mis)
     );
+    assert!(rel(mis).abs().max_element() < 0.01, "MIS: {}", rel(mis));
     assert!(
         rel(unbiased).abs().max_element() < 0.01,
         "{}",

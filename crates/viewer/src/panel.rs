@@ -346,6 +346,10 @@ fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         ui.add(egui::Slider::new(&mut r.depth_threshold, 0.0..=1.0).text("depth threshold"));
         ui.add(egui::Slider::new(&mut r.normal_threshold, 0.0..=1.0).text("normal threshold"));
         ui.checkbox(&mut r.unbiased, "unbiased (1/Z with visibility)");
+        ui.checkbox(
+            &mut r.mis,
+            "MIS weights (balance heuristic over the pixels)",
+        );
     });
     if r.enabled && !was {
         c.frame.adaptive.enabled = false;

@@ -35,6 +35,10 @@
 //!   is counted out of `Z` while its weight stays in `w_sum`, and the temporal chain amplifies
 //!   that by up to `m_cap` per frame (measured: weights growing without bound behind a
 //!   blocker).
+//!   MIS mode (`mis`, the paper's Section 4): each reservoir's sample is weighted by the
+//!   generalised balance heuristic over the combined pixels' targets and `W = w_sum / p_hat`;
+//!   with `unbiased` the targets include visibility (a shadow ray per pair), without it they
+//!   do not (the paper's biased MIS).
 //! - **Visibility reuse**: the survivor of the candidates is shadow-tested and its `W` set to
 //!   0 when occluded, before any reuse.
 //! - **Temporal reuse**: the previous frame's final reservoir at the pixel the motion vector
@@ -107,6 +111,9 @@ pub struct RestirConfig {
     pub m_cap: u32,
     /// The unbiased combination (1/Z with visibility) instead of the plain one.
     pub unbiased: bool,
+    /// Combine with the paper's MIS weights (generalised balance heuristic, Section 4)
+    /// instead of 1/M or 1/Z (with `unbiased`, their targets include visibility).
+    pub mis: bool,
 }
 
 impl Default for RestirConfig {
@@ -124,6 +131,7 @@ impl Default for RestirConfig {
             normal_threshold: 0.9,
             m_cap: 20,
             unbiased: false,
+            mis: false,
         }
     }
 }
@@ -525,16 +533,20 @@ impl Restir {
     }
 
     /// Combines reservoir `own` of `receiver` with `others` (each with its pixel's receiver),
-    /// `W` by the plain or the unbiased combination; returns the combined reservoir.
+    /// `W` by the plain, the unbiased (1/Z) or the MIS combination as `config` says; returns
+    /// the combined reservoir.
     fn combine(
         tracer: &PathTracer,
-        unbiased: bool,
+        config: &RestirConfig,
         receiver: &Receiver,
         own: &Reservoir,
         others: &[(Reservoir, &Receiver)],
         rng: &mut Rng,
         rays: &mut u32,
     ) -> Reservoir {
+        if config.mis {
+            return Self::combine_mis(tracer, config.unbiased, receiver, own, others, rng, rays);
+        }
         let lights = &tracer.world.lights;
         let mut s = Reservoir::default();
         s.update(
@@ -552,7 +564,7 @@ impl Restir {
             };
             s.update(q.sample, t * q.weight * q.m, t, q.m, rng.next_f32());
         }
-        let z = if unbiased && s.target > 0.0 {
+        let z = if config.unbiased && s.target > 0.0 {
             // A reservoir holds only samples its own pixel sees (or none): a survivor hidden
             // from here would shade nothing here, and kept, it would break the count below
             // for the next frame.
@@ -572,6 +584,65 @@ impl Restir {
             s.m
         };
         s.finish(z);
+        s
+    }
+
+    /// The combination with the paper's MIS weights (the generalised balance heuristic):
+    /// reservoir i's sample y_i enters with weight `m_i(y_i) p_hat(y_i) W_i`, where
+    /// `m_i(y) = M_i p_hat_i(y) / sum_j M_j p_hat_j(y)` over the combined reservoirs' pixels
+    /// (with visibility in the unbiased mode), and `W = w_sum / p_hat(y)`. A sample that is
+    /// rare where it was drawn but bright here gets the small weight its own pixel gives it,
+    /// instead of the 1/M weights' outlier. Costs `(k + 1)^2` target evaluations for `k`
+    /// neighbours.
+    fn combine_mis(
+        tracer: &PathTracer,
+        unbiased: bool,
+        receiver: &Receiver,
+        own: &Reservoir,
+        others: &[(Reservoir, &Receiver)],
+        rng: &mut Rng,
+        rays: &mut u32,
+    ) -> Reservoir {
+        let lights = &tracer.world.lights;
+        let all = || std::iter::once((own, receiver)).chain(others.iter().map(|(q, r)| (q, *r)));
+        let mut s = Reservoir::default();
+        for (i, (ri, _)) in all().enumerate() {
+            let here = if ri.weight <= 0.0 {
+                0.0
+            } else if i == 0 {
+                own.target
+            } else {
+                receiver.target(lights, &ri.sample)
+            };
+            if here <= 0.0 {
+                s.m += ri.m;
+                continue;
+            }
+            // The balance heuristic over the pixels' targets (a reservoir's own target is
+            // its pixel's; in the unbiased mode its sample is visible there).
+            let (mut own_term, mut sum) = (0.0, 0.0);
+            for (j, (rj, recj)) in all().enumerate() {
+                let t = if j == i {
+                    ri.target
+                } else if unbiased {
+                    recj.receive(lights, &ri.sample)
+                        .filter(|r| recj.visibility(tracer, r, rays) > 0.0)
+                        .map_or(0.0, |r| r.target)
+                } else {
+                    recj.target(lights, &ri.sample)
+                };
+                sum += rj.m * t;
+                if j == i {
+                    own_term = rj.m * t;
+                }
+            }
+            let m = if sum > 0.0 { own_term / sum } else { 0.0 };
+            s.update(ri.sample, m * here * ri.weight, here, ri.m, rng.next_f32());
+        }
+        if unbiased && s.target > 0.0 && !receiver.sees(tracer, &s.sample, rays) {
+            return Reservoir { weight: 0.0, ..s };
+        }
+        s.finish(1.0);
         s
     }
 
@@ -624,7 +695,7 @@ impl Restir {
                 let mut rays = 0;
                 *r = Self::combine(
                     tracer,
-                    config.unbiased,
+                    config,
                     receiver,
                     r,
                     &[(prev, prev_receiver)],
@@ -681,11 +752,11 @@ impl Restir {
                     let q = (ny * w + nx) as usize;
                     // A pixel without a receiver has an empty reservoir (M = 0). The plain
                     // combination never reads the neighbour's receiver (a cache miss each):
-                    // only the unbiased count does.
+                    // only the unbiased count and the MIS weights do.
                     if input[q].m == 0.0 || !similar(g, &gbuffer[q], config) {
                         continue;
                     }
-                    let other = if config.unbiased {
+                    let other = if config.unbiased || config.mis {
                         match &receivers[q] {
                             Some(other) => other,
                             None => continue,
@@ -698,7 +769,7 @@ impl Restir {
                 let mut rays = 0;
                 *out = Self::combine(
                     tracer,
-                    config.unbiased,
+                    config,
                     receiver,
                     &input[pixel],
                     others,
