@@ -12,6 +12,7 @@ mod config_args;
 mod eval;
 mod info;
 mod memory;
+mod merge;
 mod play;
 mod render;
 mod scene_args;
@@ -45,6 +46,9 @@ pub enum Command {
     /// Render an image with the reference path tracer (the built-in Cornell box without a
     /// scene).
     Render(render::RenderArgs),
+    /// Combine the partial renders of one render (`render --samples A..B --out PART.part`)
+    /// into its image, exactly.
+    Merge(merge::MergeArgs),
     /// Run an experiment (TOML spec): error against references over samples and time, with
     /// plots and an HTML report.
     Eval(eval::EvalArgs),
@@ -90,6 +94,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(args) => info::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Merge(args) => merge::run(&args),
         Command::Eval(args) => eval::run(&args),
         Command::Play(args) => play::run(&args),
         Command::View(args) => view::run(&args),

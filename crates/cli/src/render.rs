@@ -9,7 +9,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use pathlight_render::checkpoint::{self, Header};
 use pathlight_render::output::write_film;
-use pathlight_render::renderer::{pass_targets, render_pass};
+use pathlight_render::part::{self, PartHeader};
+use pathlight_render::renderer::{pass_targets, render_range_pass};
 use pathlight_render::{Config, Film, World};
 
 use crate::config_args::{check, ConfigArgs};
@@ -53,6 +54,12 @@ pub struct RenderArgs {
     #[arg(long)]
     pub resume: bool,
 
+    /// Trace only sample indices A..B of every pixel (of the --spp of the whole render) and
+    /// write a partial render to --out PART.part, for `pathlight merge` (renders split over
+    /// machines).
+    #[arg(long, value_name = "A..B")]
+    pub samples: Option<SampleRange>,
+
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -60,6 +67,36 @@ pub struct RenderArgs {
     /// Print one JSON object with the timings and memory as the last line.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `A..B`: sample indices A (included) to B (excluded).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleRange {
+    pub start: u32,
+    pub end: u32,
+}
+
+impl std::str::FromStr for SampleRange {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("{s:?}: expected A..B with whole numbers A < B, e.g. 0..64");
+        let (a, b) = s.split_once("..").ok_or_else(bad)?;
+        let (start, end) = (
+            a.trim().parse().map_err(|_| bad())?,
+            b.trim().parse().map_err(|_| bad())?,
+        );
+        if start >= end {
+            return Err(bad());
+        }
+        Ok(Self { start, end })
+    }
+}
+
+/// True for a `.part` output path.
+fn is_part(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("part"))
 }
 
 impl RenderArgs {
@@ -111,7 +148,20 @@ fn scene_identity(world: &World, args: &SceneArgs) -> String {
 }
 
 pub fn run(args: &RenderArgs) -> Result<()> {
-    pathlight_render::output::Format::from_path(&args.out)?;
+    match (args.samples, is_part(&args.out)) {
+        (Some(_), true) => {}
+        (Some(_), false) => bail!(
+            "{}: --samples writes a partial render: give --out a .part file (then `pathlight merge`)",
+            args.out.display()
+        ),
+        (None, true) => bail!(
+            "{}: a .part output is a partial render: give the sample range with --samples A..B",
+            args.out.display()
+        ),
+        (None, false) => {
+            pathlight_render::output::Format::from_path(&args.out)?;
+        }
+    }
     let pool = thread_pool(args.threads)?;
     pool.install(|| render(args))
 }
@@ -132,6 +182,17 @@ fn render(args: &RenderArgs) -> Result<()> {
         scene: scene_identity(&world, &args.scene),
         width: config.width,
         height: config.height,
+        samples: args.samples.map(|r| [r.start, r.end]),
+    };
+    let (first, count) = match args.samples {
+        Some(r) if r.end > config.spp => bail!(
+            "--samples {}..{}: the range ends past the render's --spp {}",
+            r.start,
+            r.end,
+            config.spp
+        ),
+        Some(r) => (r.start, r.end - r.start),
+        None => (0, config.spp),
     };
     let checkpoint_path = args.checkpoint_path();
     let mut film = if args.resume {
@@ -156,7 +217,7 @@ fn render(args: &RenderArgs) -> Result<()> {
 
     // A second Ctrl-C while the output is written is ignored.
     let cancel = ctrl_c_flag();
-    let total = config.width as u64 * config.height as u64 * config.spp as u64;
+    let total = config.width as u64 * config.height as u64 * count as u64;
     let bar = progress_bar(
         args.quiet || args.json,
         total,
@@ -168,12 +229,15 @@ fn render(args: &RenderArgs) -> Result<()> {
     let mut last_checkpoint = Instant::now();
     let every = Duration::from_secs_f64(args.checkpoint_every.max(0.0));
     let mut complete = true;
-    for target in pass_targets(film.min_samples(), config.spp, MAX_PASS) {
-        let finished = render_pass(&world, &camera, &config, &mut film, target, &cancel, &|n| {
+    for target in pass_targets(film.min_samples(), count, MAX_PASS) {
+        let progress = |n| {
             let d = done.fetch_add(n, Ordering::Relaxed) + n;
             bar.set_position(d);
-        });
-        bar.set_message(format!("{target}/{} spp", config.spp));
+        };
+        let finished = render_range_pass(
+            &world, &camera, &config, &mut film, first, target, &cancel, &progress,
+        );
+        bar.set_message(format!("{target}/{count} spp"));
         if !finished {
             complete = false;
             break;
@@ -185,7 +249,22 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let render_s = render_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    write_film(&args.out, &film, args.aovs, &config.display)?;
+    if args.samples.is_none() {
+        write_film(&args.out, &film, args.aovs, &config.display)?;
+    } else if complete {
+        part::save(
+            &args.out,
+            &PartHeader::new(&header, first, first + count),
+            &film,
+        )?;
+    }
+    if !complete && args.samples.is_some() {
+        checkpoint::save(&checkpoint_path, &header, &film)?;
+        bail!(
+            "stopped: no partial render written (a part holds its whole range); continue with --resume (checkpoint {})",
+            checkpoint_path.display()
+        );
+    }
     if !complete {
         checkpoint::save(&checkpoint_path, &header, &film)?;
         bail!(
@@ -207,12 +286,15 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let samples = film.samples();
     let peak = peak_rss_bytes();
+    let what = match args.samples {
+        Some(r) => format!("samples {}..{} of {} spp", r.start, r.end, config.spp),
+        None => format!("{} spp", config.spp),
+    };
     eprintln!(
-        "{}: {}x{} at {} spp in {:.2} s ({:.2} M samples/s), setup {:.0} ms, peak memory {}",
+        "{}: {}x{} at {what} in {:.2} s ({:.2} M samples/s), setup {:.0} ms, peak memory {}",
         args.out.display(),
         config.width,
         config.height,
-        config.spp,
         render_s,
         samples as f64 / render_s / 1e6,
         setup_ms,

@@ -213,3 +213,62 @@ fn ctrl_c_keeps_the_work_and_resume_finishes_it_exactly() {
 
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn sample_ranges_merge_to_the_single_render_with_aovs() {
+    let dir = temp_dir("ranges");
+    let common = [
+        "--spp", "8", "--width", "20", "--height", "16", "--seed", "4", "--quiet",
+    ];
+    let run = |extra: &[&str]| {
+        let mut args = vec!["render"];
+        args.extend(common);
+        args.extend(extra);
+        let r = pathlight(&args);
+        assert!(r.status.success(), "{}", stderr(&r));
+    };
+    let whole = dir.join("whole.exr");
+    run(&["--aovs", "--out", s(&whole)]);
+    let (a, b) = (dir.join("a.part"), dir.join("b.part"));
+    run(&["--samples", "0..3", "--out", s(&a), "--threads", "1"]);
+    run(&["--samples", "3..8", "--out", s(&b)]);
+    for out in ["merged.exr", "merged.png"] {
+        let merged = dir.join(out);
+        let r = pathlight(&["merge", s(&b), s(&a), "--aovs", "--out", s(&merged)]);
+        assert!(r.status.success(), "{}", stderr(&r));
+        assert!(merged.exists());
+    }
+    let merged = dir.join("merged.exr");
+    for layer in ["", "direct", "indirect", "albedo", "normal", "variance"] {
+        let (x, y) = (
+            read_exr_layer(&whole, layer).unwrap().2,
+            read_exr_layer(&merged, layer).unwrap().2,
+        );
+        for (p, q) in x.iter().zip(&y) {
+            assert!(
+                (*p - *q).abs().max_element() <= 1e-5 * (1.0 + p.abs().max_element()),
+                "layer {layer:?}: {p} vs {q}"
+            );
+        }
+    }
+    // A missing range is refused, naming the part, and nothing is written.
+    let bad = dir.join("bad.exr");
+    let r = pathlight(&["merge", s(&a), "--out", s(&bad)]);
+    assert!(!r.status.success());
+    assert!(
+        stderr(&r).contains("a.part") && stderr(&r).contains("missing"),
+        "{}",
+        stderr(&r)
+    );
+    assert!(!bad.exists());
+    // A range past the render's samples, and a part without a range, are refused.
+    let r = pathlight(&["render", "--spp", "8", "--samples", "4..9", "--out", s(&a)]);
+    assert!(
+        stderr(&r).contains("past the render's --spp 8"),
+        "{}",
+        stderr(&r)
+    );
+    let r = pathlight(&["render", "--spp", "8", "--out", s(&a)]);
+    assert!(stderr(&r).contains("--samples"), "{}", stderr(&r));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

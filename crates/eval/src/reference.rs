@@ -170,6 +170,7 @@ impl ReferenceCache {
             scene: scene.description.clone(),
             width: config.width,
             height: config.height,
+            samples: None,
         };
         let mut film = match checkpoint::load(&ckpt) {
             Ok((h, film)) if h.compatible(&header) => {

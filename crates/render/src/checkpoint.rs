@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::config::Config;
@@ -20,7 +21,7 @@ pub enum CheckpointError {
     Invalid { file: PathBuf, problem: String },
 }
 
-fn invalid(file: &Path, problem: impl ToString) -> CheckpointError {
+pub(crate) fn invalid(file: &Path, problem: impl ToString) -> CheckpointError {
     CheckpointError::Invalid {
         file: file.to_owned(),
         problem: problem.to_string(),
@@ -36,6 +37,10 @@ pub struct Header {
     pub scene: String,
     pub width: u32,
     pub height: u32,
+    /// A render of sample indices `[start, end)` only (`render --samples`), whose output is a
+    /// partial render ([`crate::part`]); `None`: the whole `0..spp`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples: Option<[u32; 2]>,
 }
 
 impl Header {
@@ -56,9 +61,28 @@ impl Header {
 
 /// Writes `film` with `header` to `path` atomically.
 pub fn save(path: &Path, header: &Header, film: &Film) -> Result<(), CheckpointError> {
+    save_as(path, MAGIC, header, film)
+}
+
+/// Reads a checkpoint, checking its size against its own header.
+pub fn load(path: &Path) -> Result<(Header, Film), CheckpointError> {
+    load_as(path, MAGIC, "a pathlight checkpoint", |h: &Header| {
+        (h.width, h.height)
+    })
+}
+
+/// The file layout of checkpoints and partial renders: `magic`, a little-endian u64 length,
+/// that many bytes of JSON (`header`), then the film's pixels as [`PIXEL_FLOATS`]
+/// little-endian f32 each. Written atomically.
+pub(crate) fn save_as<H: Serialize>(
+    path: &Path,
+    magic: &[u8; 8],
+    header: &H,
+    film: &Film,
+) -> Result<(), CheckpointError> {
     let json = serde_json::to_vec(header).map_err(|e| invalid(path, e))?;
     let mut bytes = Vec::with_capacity(16 + json.len() + film.pixels.len() * PIXEL_FLOATS * 4);
-    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(magic);
     bytes.extend_from_slice(&(json.len() as u64).to_le_bytes());
     bytes.extend_from_slice(&json);
     for p in &film.pixels {
@@ -69,33 +93,37 @@ pub fn save(path: &Path, header: &Header, film: &Film) -> Result<(), CheckpointE
     write_atomic(path, &bytes).map_err(|e| invalid(path, e))
 }
 
-/// Reads a checkpoint, checking its size against its own header.
-pub fn load(path: &Path) -> Result<(Header, Film), CheckpointError> {
+/// Reads a file written by [`save_as`] with `magic` (`what` names the kind in errors), its
+/// size checked against the dimensions `dims` finds in its header.
+pub(crate) fn load_as<H: DeserializeOwned>(
+    path: &Path,
+    magic: &[u8; 8],
+    what: &str,
+    dims: impl Fn(&H) -> (u32, u32),
+) -> Result<(H, Film), CheckpointError> {
     let bytes = std::fs::read(path).map_err(|e| invalid(path, e))?;
-    if bytes.len() < 16 || &bytes[..8] != MAGIC {
-        return Err(invalid(path, "not a pathlight checkpoint"));
+    if bytes.len() < 16 || &bytes[..8] != magic {
+        return Err(invalid(path, format!("not {what}")));
     }
     let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap());
     let json_end = 16u64
         .checked_add(len)
         .filter(|&e| e <= bytes.len() as u64)
         .ok_or_else(|| invalid(path, "truncated header"))? as usize;
-    let header: Header =
-        serde_json::from_slice(&bytes[16..json_end]).map_err(|e| invalid(path, e))?;
-    let pixels = header.width as u64 * header.height as u64;
+    let header: H = serde_json::from_slice(&bytes[16..json_end]).map_err(|e| invalid(path, e))?;
+    let (width, height) = dims(&header);
+    let pixels = width as u64 * height as u64;
     let expected = pixels * (PIXEL_FLOATS as u64 * 4);
     if (bytes.len() - json_end) as u64 != expected {
         return Err(invalid(
             path,
             format!(
-                "expected {expected} bytes of pixel data for {}x{}, found {}",
-                header.width,
-                header.height,
+                "expected {expected} bytes of pixel data for {width}x{height}, found {}",
                 bytes.len() - json_end
             ),
         ));
     }
-    let mut film = Film::new(header.width, header.height);
+    let mut film = Film::new(width, height);
     for (p, chunk) in film
         .pixels
         .iter_mut()

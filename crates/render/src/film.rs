@@ -41,6 +41,32 @@ impl Pixel {
         self.depth += (s.depth - self.depth) * inv;
     }
 
+    /// Adds the statistics of `other`, a disjoint set of samples of the same pixel (Chan,
+    /// Golub and LeVeque's parallel Welford update: means weighted by the counts, M2 plus the
+    /// spread of the two means).
+    pub fn merge(&mut self, other: &Pixel) {
+        if other.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            *self = *other;
+            return;
+        }
+        let (na, nb) = (self.n as f64, other.n as f64);
+        let n = na + nb;
+        let (wa, wb) = ((na / n) as f32, (nb / n) as f32);
+        let delta = other.mean - self.mean;
+        self.m2 += other.m2 + delta * delta * (na * nb / n) as f32;
+        let mix = |a: Vec3, b: Vec3| a * wa + b * wb;
+        self.mean = mix(self.mean, other.mean);
+        self.direct = mix(self.direct, other.direct);
+        self.indirect = mix(self.indirect, other.indirect);
+        self.albedo = mix(self.albedo, other.albedo);
+        self.normal = mix(self.normal, other.normal);
+        self.depth = self.depth * wa + other.depth * wb;
+        self.n += other.n;
+    }
+
     /// The sample variance of radiance per channel (n - 1 estimator; zero below 2 samples).
     /// Divide by `n` for the variance of the pixel's mean.
     pub fn variance(&self) -> Vec3 {

@@ -13,6 +13,7 @@ pub mod film;
 pub mod frame;
 pub mod light;
 pub mod output;
+pub mod part;
 pub mod path;
 pub mod renderer;
 pub mod sampler;

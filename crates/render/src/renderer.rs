@@ -28,6 +28,22 @@ pub fn render_pass(
     cancel: &AtomicBool,
     progress: &(dyn Fn(u64) + Sync),
 ) -> bool {
+    render_range_pass(world, camera, config, film, 0, target, cancel, progress)
+}
+
+/// As [`render_pass`] for a film that holds sample indices from `first` on (a partial render,
+/// [`crate::part`]): a pixel's `k`-th sample is sample index `first + k`.
+#[allow(clippy::too_many_arguments)]
+pub fn render_range_pass(
+    world: &World,
+    camera: &Camera,
+    config: &Config,
+    film: &mut Film,
+    first: u32,
+    target: u32,
+    cancel: &AtomicBool,
+    progress: &(dyn Fn(u64) + Sync),
+) -> bool {
     let tracer = PathTracer {
         world,
         camera,
@@ -46,7 +62,7 @@ pub fn render_pass(
                 let x = (i % width) as u32;
                 let y = (band * BAND_ROWS + i / width) as u32;
                 while pixel.n < target {
-                    pixel.add(&tracer.sample_pixel(x, y, pixel.n));
+                    pixel.add(&tracer.sample_pixel(x, y, first + pixel.n));
                     added += 1;
                 }
             }

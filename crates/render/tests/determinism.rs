@@ -78,6 +78,7 @@ fn stopped_and_resumed_render_equals_an_uninterrupted_one() {
         scene: "cornell".into(),
         width: cfg.width,
         height: cfg.height,
+        samples: None,
     };
     checkpoint::save(&path, &header, &film).unwrap();
     let (loaded_header, mut resumed) = checkpoint::load(&path).unwrap();
