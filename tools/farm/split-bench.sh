@@ -12,5 +12,5 @@ $B render --spp 1024 --threads 1 --samples 512..1024 --out b.part --quiet 2>/dev
 wait
 $B merge a.part b.part --out merged.exr 2>/dev/null
 t2=$(date +%s.%N)
-echo "round $round: one render 2 threads $(echo "$t1-$t0"|bc) s; 2 x 1 thread + merge $(echo "$t2-$t1"|bc) s"
+echo "round $round: one render 2 threads $(awk "BEGIN{print $t1-$t0}") s; 2 x 1 thread + merge $(awk "BEGIN{print $t2-$t1}") s"
 done
