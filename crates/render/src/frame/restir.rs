@@ -57,6 +57,12 @@
 //!   emitters the light list does not hold.
 //! - **Randomness**: each pixel's candidates and neighbours come from streams hashed from the
 //!   seed, the pixel and its sample index, so frames do not depend on the thread count.
+//! - **History**: the reservoirs survive camera moves (temporal reuse follows the motion
+//!   vectors) and frames that do not accumulate; any other change of the settings, a reset or
+//!   a new resolution forgets them.
+//! - **Not yet**: together with seed 000's adaptive sampling or reprojection (the
+//!   configuration is refused), and the pass costs far more than the GPU implementations'
+//!   (BENCHMARKS.md, "Seed 004").
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
