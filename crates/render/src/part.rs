@@ -6,7 +6,7 @@
 //! File format (version 1), little-endian: the magic `PLPART01`; a u64 length; that many bytes
 //! of JSON ([`PartHeader`]: `format` (1), `settings` (a hash of `render`, hex), `render` (the
 //! whole render's [`Header`]: configuration with the total `spp`, scene identity, size), `start`
-//! and `end`); then `width * height` pixels of [`PIXEL_FLOATS`] f32 each (sample count as the
+//! and `end`); then `width * height` pixels of [`crate::film::PIXEL_FLOATS`] (23) f32 each (sample count as the
 //! bits of a u32, mean and M2 of radiance, direct, indirect, albedo, normal, depth: see
 //! [`crate::film::Pixel::to_array`]). Every pixel of a part holds exactly `end - start`
 //! samples.
