@@ -233,19 +233,38 @@ impl ViewRun<'_> {
         let budget = &self.runner.spec.budget;
         let cancel = self.runner.cancel;
         let (w, h) = (pipeline.config().width, pipeline.config().height);
-        let spp_per_frame = pipeline.config().spp.max(1);
+        let pixels = (w as u64 * h as u64).max(1);
         let max_spp = budget.spp.last().copied().unwrap_or(0);
         let max_ms = budget.time_ms.last().copied().unwrap_or(0.0);
         let (mut next_spp, mut next_ms) = (0, 0);
+        // Equal samples count the samples the frames actually traced (`FrameReport::samples`),
+        // per pixel on average: a technique that traces some pixels and not others (adaptive
+        // sampling, reprojection's holes) is measured at the same number of camera paths as
+        // the plain pipeline, not at the same number of frames.
+        let mut traced = 0u64;
         let mut spp = 0u32;
         let mut stages: BTreeMap<String, f64> = BTreeMap::new();
         let mut last = None;
-        while (next_spp < budget.spp.len() || next_ms < budget.time_ms.len()) && spp < MAX_SPP {
+        // Once only sample budgets remain: a guard against a technique whose frames trace
+        // (almost) nothing (not reached in practice: adaptive sampling's probabilities are at
+        // least min_spp / max_spp).
+        let max_frames = 64 * max_spp as u64 + 1024;
+        let mut frames = 0u64;
+        while (next_spp < budget.spp.len() || next_ms < budget.time_ms.len())
+            && spp < MAX_SPP
+            && (next_ms < budget.time_ms.len() || frames < max_frames)
+        {
             if cancel.load(Ordering::Relaxed) {
                 return Ok(None);
             }
             let report: FrameReport = pipeline.render_frame(self.world);
-            spp += spp_per_frame;
+            frames += 1;
+            if !report.traced {
+                // Accumulation has stopped (`max_frames`): no later frame adds anything.
+                break;
+            }
+            traced += report.samples;
+            spp = (traced / pixels).min(MAX_SPP as u64) as u32;
             for p in &report.passes {
                 *stages.entry(p.pass.to_owned()).or_default() += p.ms;
             }

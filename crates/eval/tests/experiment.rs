@@ -264,3 +264,24 @@ fn the_shipped_experiments_load() {
     }
     assert!(count >= 4, "{count} specs");
 }
+
+#[test]
+fn sample_budgets_count_the_samples_frames_actually_traced() {
+    // Adaptive sampling (2/8) traces a fraction of the pixels in most frames: an equal-samples
+    // budget is reached when the frames have traced that many samples per pixel on average,
+    // not after that many frames.
+    let mut spec = Spec::parse(SPEC).unwrap();
+    spec.repetitions = 1;
+    spec.budget.spp = vec![6];
+    spec.configurations.truncate(1);
+    let c = &mut spec.configurations[0].config;
+    c.frame.adaptive.enabled = true;
+    c.frame.adaptive.min_spp = 2;
+    c.frame.adaptive.max_spp = 8;
+    let outcome = run(&spec, &temp_dir("adaptive-spp").join("cache"), None);
+    let m = &outcome.results.measurements[0];
+    assert_eq!(m.budget, BudgetPoint::Spp(6));
+    // The mean samples per pixel in the history at the measurement: the budget, give or take
+    // the last frame's samples (at most one per pixel).
+    assert!(m.spp >= 6.0 && m.spp < 7.0, "{m:?}");
+}
