@@ -137,20 +137,38 @@ def test_eight_ranges_over_two_workers_equal_the_single_render(cluster, tmp_path
 
 
 def test_a_worker_killed_during_the_run_loses_only_its_ranges(cluster, tmp_path):
+    from distributed import Client
+
     seen = []
+    held = []
 
     def progress(line: str) -> None:
         seen.append(line)
         if len(seen) == 2:
-            # Kill one worker (its whole process) while ranges are still running.
+            # What the worker holds, asked of the scheduler just before the kill: the range it
+            # runs (one thread) and the finished ranges whose bytes the driver has not fetched.
+            with Client(cluster.address) as c:
+                pids = c.run(os.getpid)
+                address = next(a for a, pid in pids.items() if pid == cluster.workers[0].pid)
+                held.append(len(c.processing()[address]) + len(c.has_what()[address]))
+            # Kill the worker (its whole process) while ranges are still running.
             cluster.kill_worker(0)
 
-    spp = 256
-    render(ARGS, spp, 16, tmp_path / "farm.exr", scheduler=cluster.address, binary=binary(),
-           aovs=True, progress=progress)
+    # The workers run the binary through a wrapper that logs every range it starts.
+    log = tmp_path / "ranges.log"
+    wrapper = tmp_path / "pathlight-logged"
+    wrapper.write_text(f'#!/bin/sh\necho "$@" >> "{log}"\nexec "{binary()}" "$@"\n')
+    wrapper.chmod(0o755)
+    spp, chunks = 256, 16
+    render(ARGS, spp, chunks, tmp_path / "farm.exr", scheduler=cluster.address,
+           binary=binary(), worker_binary=str(wrapper), aovs=True, progress=progress)
     assert cluster.workers[0].poll() is not None, "the worker was not killed"
     assert seen[-1].startswith(f"{spp}/{spp} spp")
     assert_same_exr(tmp_path / "farm.exr", single(tmp_path, spp, "single.exr"))
+    # Work lost: at most the ranges the killed worker held (running, or finished and not yet
+    # fetched): every other range ran once.
+    started = [line for line in log.read_text().splitlines() if "--samples" in line]
+    assert held and chunks <= len(started) <= chunks + held[0], (held, started)
 
 
 def test_the_command_line_renders_on_a_local_cluster(tmp_path):
