@@ -515,12 +515,7 @@ impl Lights {
     pub fn draw(&self, u_select: f32, u: Vec2) -> Option<(LightPoint, f32)> {
         let (index, select) = self.choose(u_select)?;
         let point = self.sample_point(index, u)?;
-        let pdf = match self.triangles.get(index) {
-            Some(t) => select / t.area,
-            None if index - self.triangles.len() < self.punctual.len() => select,
-            None => self.point_pdf(&point),
-        };
-        Some((point, pdf))
+        Some((point, self.point_pdf_selected(&point, select)))
     }
 
     /// [`evaluate`](Self::evaluate) and the geometry term that converts the point's measure to
@@ -557,7 +552,13 @@ impl Lights {
         if index >= self.count {
             return 0.0;
         }
-        let select = self.selection_pmf(index);
+        self.point_pdf_selected(point, self.selection_pmf(index))
+    }
+
+    /// [`point_pdf`](Self::point_pdf) given the light's selection probability `select`.
+    #[inline]
+    fn point_pdf_selected(&self, point: &LightPoint, select: f32) -> f32 {
+        let index = point.light as usize;
         if select == 0.0 {
             return 0.0;
         }

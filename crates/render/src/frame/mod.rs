@@ -807,31 +807,19 @@ fn trace<P: Plan>(
                     }
                 }
                 hits.clear();
-                rays += if P::EVERY_PIXEL {
-                    primary_run(
-                        tracer,
-                        previous,
-                        cameras,
-                        camera_rays,
-                        first_hits,
-                        |i, pixel, hit| {
-                            gpixels[i] = pixel;
-                            hits.push(hit);
-                        },
-                    )
-                } else {
-                    primary_run(
-                        tracer,
-                        previous,
-                        cameras,
-                        camera_rays,
-                        first_hits,
-                        |i, pixel, hit| {
-                            gpixels[traced[i].0] = pixel;
-                            hits.push(hit);
-                        },
-                    )
-                };
+                rays += primary_run(
+                    tracer,
+                    previous,
+                    cameras,
+                    camera_rays,
+                    first_hits,
+                    |i, pixel, hit| {
+                        // The i-th camera sample's pixel of the run.
+                        let k = if P::EVERY_PIXEL { i } else { traced[i].0 };
+                        gpixels[k] = pixel;
+                        hits.push(hit);
+                    },
+                );
                 let t1 = Instant::now();
                 if P::EVERY_PIXEL {
                     let index = plan.sample(start).unwrap_or(0);

@@ -154,16 +154,30 @@ fn receiver(albedo: f32) -> Receiver {
     )
 }
 
+/// The default configuration and camera of `world`, for a [`tracer`].
+fn view(world: &World) -> (Config, crate::camera::Camera) {
+    let config = Config::default();
+    let camera = world.camera(&config);
+    (config, camera)
+}
+
+fn tracer<'a>(
+    world: &'a World,
+    camera: &'a crate::camera::Camera,
+    config: &'a Config,
+) -> PathTracer<'a> {
+    PathTracer {
+        world,
+        camera,
+        config,
+    }
+}
+
 #[test]
 fn ris_shading_matches_lambert_irradiance_for_any_candidate_count() {
     let world = lit_world();
-    let config = Config::default();
-    let camera = world.camera(&config);
-    let tracer = PathTracer {
-        world: &world,
-        camera: &camera,
-        config: &config,
-    };
+    let (config, camera) = view(&world);
+    let tracer = tracer(&world, &camera, &config);
     let albedo = 0.8;
     let rec = receiver(albedo);
     // Lambert: radiance = albedo / pi * sum of Le E.
@@ -234,13 +248,8 @@ fn edge(world: &World) -> (Restir, Vec<GPixel>) {
 #[test]
 fn spatial_reuse_never_crosses_a_depth_edge() {
     let world = lit_world();
-    let config = Config::default();
-    let camera = world.camera(&config);
-    let tracer = PathTracer {
-        world: &world,
-        camera: &camera,
-        config: &config,
-    };
+    let (config, camera) = view(&world);
+    let tracer = tracer(&world, &camera, &config);
     for unbiased in [false, true] {
         let (mut restir, gbuffer) = edge(&world);
         let settings = RestirConfig {
@@ -267,13 +276,8 @@ fn spatial_reuse_never_crosses_a_depth_edge() {
 #[test]
 fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
     let world = lit_world();
-    let config = Config::default();
-    let camera = world.camera(&config);
-    let tracer = PathTracer {
-        world: &world,
-        camera: &camera,
-        config: &config,
-    };
+    let (config, camera) = view(&world);
+    let tracer = tracer(&world, &camera, &config);
     let (mut restir, gbuffer) = edge(&world);
     // Last frame: the same edge, with every reservoir's sample swapped to the other light,
     // and twice the candidates behind it.
