@@ -128,25 +128,6 @@ impl RenderArgs {
     }
 }
 
-/// A short identity of the scene for checkpoints.
-fn scene_identity(world: &World, args: &SceneArgs) -> String {
-    let s = world.scene.stats();
-    format!(
-        "{} | {:?} | env {:?} x{} rot {} | +{} lights seed {} | {} triangles, {} materials, {} textures, {} lights",
-        world.scene.name,
-        args.scene,
-        args.env,
-        args.env_intensity,
-        args.env_rotation,
-        args.point_lights,
-        args.point_light_seed,
-        s.triangles,
-        s.materials,
-        s.textures,
-        world.lights.len()
-    )
-}
-
 pub fn run(args: &RenderArgs) -> Result<()> {
     match (args.samples, is_part(&args.out)) {
         (Some(_), true) => {}
@@ -179,7 +160,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let camera = world.camera(&config);
     let header = Header {
         config: config.clone(),
-        scene: scene_identity(&world, &args.scene),
+        scene: args.scene.identity(&world),
         width: config.width,
         height: config.height,
         samples: args.samples.map(|r| [r.start, r.end]),

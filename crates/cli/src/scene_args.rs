@@ -3,11 +3,12 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use pathlight_render::World;
 use pathlight_scene::{Limits, LoadOptions};
 
 /// Which scene to load, and what to add to it. Flatten this into a command's arguments with
 /// `#[command(flatten)]`.
-#[derive(Debug, Clone, Args)]
+#[derive(Debug, Clone, PartialEq, Args)]
 #[command(next_help_heading = "Scene")]
 pub struct SceneArgs {
     /// Scene file: glTF 2.0 (.gltf, .glb) or OBJ/MTL (.obj). Without it, the built-in Cornell box.
@@ -72,6 +73,61 @@ impl SceneArgs {
             point_lights: self.point_lights,
             point_light_seed: self.point_light_seed,
         }
+    }
+}
+
+impl SceneArgs {
+    /// The arguments that load `scene` (none: the built-in Cornell box) with `options`
+    /// (default limits).
+    pub fn new(scene: Option<PathBuf>, options: &LoadOptions) -> Self {
+        Self {
+            scene,
+            env: options.environment.clone(),
+            env_rotation: options.environment_rotation,
+            env_intensity: options.environment_intensity,
+            point_lights: options.point_lights,
+            point_light_seed: options.point_light_seed,
+            max_triangles: None,
+            max_texture_pixels: None,
+        }
+    }
+
+    /// The command-line arguments that give these arguments back (limits left out).
+    pub fn to_args(&self) -> Vec<String> {
+        let mut args: Vec<String> = self.scene.iter().map(|s| s.display().to_string()).collect();
+        if let Some(env) = &self.env {
+            args.extend(["--env".to_owned(), env.display().to_string()]);
+        }
+        args.extend([
+            "--env-rotation".to_owned(),
+            self.env_rotation.to_string(),
+            "--env-intensity".to_owned(),
+            self.env_intensity.to_string(),
+            "--point-lights".to_owned(),
+            self.point_lights.to_string(),
+            "--point-light-seed".to_owned(),
+            self.point_light_seed.to_string(),
+        ]);
+        args
+    }
+
+    /// A short identity of the loaded scene for checkpoints and partial renders.
+    pub fn identity(&self, world: &World) -> String {
+        let s = world.scene.stats();
+        format!(
+            "{} | {:?} | env {:?} x{} rot {} | +{} lights seed {} | {} triangles, {} materials, {} textures, {} lights",
+            world.scene.name,
+            self.scene,
+            self.env,
+            self.env_intensity,
+            self.env_rotation,
+            self.point_lights,
+            self.point_light_seed,
+            s.triangles,
+            s.materials,
+            s.textures,
+            world.lights.len()
+        )
     }
 }
 
@@ -140,6 +196,30 @@ mod tests {
         let defaults = Limits::default();
         assert_eq!(options.limits.max_vertices, defaults.max_vertices);
         assert_eq!(options.limits.max_file_bytes, defaults.max_file_bytes);
+    }
+
+    #[test]
+    fn to_args_gives_the_same_arguments_back() {
+        for args in [
+            parse(&[]),
+            parse(&[
+                "/scenes/room.glb",
+                "--env",
+                "/sky.hdr",
+                "--env-rotation",
+                "-33.3",
+                "--env-intensity",
+                "0.1",
+                "--point-lights",
+                "500",
+                "--point-light-seed",
+                "3",
+            ]),
+        ] {
+            let line = args.to_args();
+            let words: Vec<&str> = line.iter().map(String::as_str).collect();
+            assert_eq!(parse(&words), args, "{line:?}");
+        }
     }
 
     #[test]

@@ -182,3 +182,158 @@ frames_per_view = 2
     let e = stderr(&out);
     assert!(e.contains("two.toml") && e.contains("sideways"), "{e}");
 }
+
+/// References rendered elsewhere (`--missing-references`, then `render --samples A..B` with
+/// the listed arguments and configuration, then `--import-references`, as `pathlight-farm` does
+/// on a cluster) are the references `eval` renders itself, to float rounding, and the run then
+/// finds them in the cache. Parts of another render are refused, naming the file.
+#[test]
+fn references_rendered_in_parts_import_into_the_cache() {
+    let dir = temp_dir("import");
+    let spec = dir.join("spec.toml");
+    std::fs::write(
+        &spec,
+        r#"
+name = "import"
+width = 20
+height = 16
+metrics = ["mse"]
+point_lights = 3
+measure = "every"
+[camera]
+path = "orbit"
+steps = 1
+degrees = 15
+[budget]
+spp = [1]
+[reference]
+spp = 24
+[reference.config]
+max_bounces = 3
+[[configuration]]
+name = "plain"
+"#,
+    )
+    .unwrap();
+    let (cache, local) = (dir.join("cache"), dir.join("local"));
+    let eval = |extra: &[&str], cache: &Path| {
+        let mut args = vec!["eval", s(&spec), "--cache", s(cache)];
+        args.extend_from_slice(extra);
+        pathlight(&args)
+    };
+    let listed = eval(&["--missing-references"], &cache);
+    assert!(listed.status.success(), "{}", stderr(&listed));
+    let listed: serde_json::Value = serde_json::from_str(stdout(&listed).trim()).unwrap();
+    let references = listed["references"].as_array().unwrap().clone();
+    assert_eq!(references.len(), 2, "{listed}");
+    for (i, r) in references.iter().enumerate() {
+        let config = dir.join(format!("reference-{i}.toml"));
+        std::fs::write(&config, r["config"].as_str().unwrap()).unwrap();
+        let mut parts = Vec::new();
+        for (a, b) in [(0, 7), (7, 24)] {
+            let part = dir.join(format!("{i}-{a}.part"));
+            let mut args: Vec<String> = vec!["render".into()];
+            args.extend(
+                r["render_args"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|a| a.as_str().unwrap().to_owned()),
+            );
+            args.extend(
+                [
+                    "--config",
+                    s(&config),
+                    "--samples",
+                    &format!("{a}..{b}"),
+                    "--out",
+                    s(&part),
+                    "--quiet",
+                ]
+                .map(str::to_owned),
+            );
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let out = pathlight(&args);
+            assert!(out.status.success(), "{}", stderr(&out));
+            parts.push(part);
+        }
+        if i == 1 {
+            // Parts of two references are not one reference.
+            let mixed = eval(
+                &[
+                    "--import-references",
+                    s(&dir.join("0-0.part")),
+                    s(&parts[1]),
+                ],
+                &cache,
+            );
+            assert!(!mixed.status.success());
+            assert!(
+                stderr(&mixed).contains("1-7.part: a part of another render"),
+                "{}",
+                stderr(&mixed)
+            );
+        }
+        let mut args = vec!["--import-references"];
+        args.extend(parts.iter().map(|p| s(p)));
+        let imported = eval(&args, &cache);
+        assert!(imported.status.success(), "{}", stderr(&imported));
+        assert!(stderr(&imported).contains(r["key"].as_str().unwrap()));
+    }
+    // Nothing is missing any more, and a part of a render of another spec is refused.
+    let listed = eval(&["--missing-references"], &cache);
+    assert_eq!(stdout(&listed).trim(), r#"{"references":[]}"#);
+    let stranger = dir.join("stranger.part");
+    let out = pathlight(&[
+        "render",
+        "--width",
+        "20",
+        "--height",
+        "16",
+        "--spp",
+        "4",
+        "--samples",
+        "0..4",
+        "--out",
+        s(&stranger),
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let refused = eval(&["--import-references", s(&stranger)], &cache);
+    assert!(!refused.status.success());
+    assert!(
+        stderr(&refused).contains("stranger.part: not a part of any reference"),
+        "{}",
+        stderr(&refused)
+    );
+
+    // The run finds both references in the cache; a run with an empty cache renders them
+    // itself, and they agree to float rounding.
+    let results = |out: &Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap()
+    };
+    for (cache, out) in [(&cache, "out"), (&local, "out-local")] {
+        let out_dir = dir.join(out);
+        let run = eval(&["--out", s(&out_dir), "--quiet"], cache);
+        assert!(run.status.success(), "{}", stderr(&run));
+    }
+    let (imported, rendered) = (results(&dir.join("out")), results(&dir.join("out-local")));
+    for v in 0..2 {
+        let info = |r: &serde_json::Value| r["references"][v].clone();
+        assert_eq!(info(&imported)["cached"], true);
+        assert_eq!(info(&rendered)["cached"], false);
+        assert_eq!(info(&imported)["key"], info(&rendered)["key"]);
+        let read = |r: &serde_json::Value| {
+            pathlight_render::output::read_exr_rgb(Path::new(info(r)["path"].as_str().unwrap()))
+                .unwrap()
+                .2
+        };
+        let (a, b) = (read(&imported), read(&rendered));
+        assert_eq!(a.len(), 20 * 16);
+        for (p, q) in a.iter().zip(&b) {
+            let d = (*p - *q).abs().max_element();
+            assert!(d <= 1e-5 * q.abs().max_element().max(1e-3), "{p} vs {q}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

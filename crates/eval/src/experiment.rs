@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use pathlight_core::rng::hash;
-use pathlight_render::config::MAX_SPP;
+use pathlight_render::config::{CameraConfig, MAX_SPP};
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::{FrameReport, Pipeline};
 use pathlight_render::{Config, World};
@@ -50,6 +50,27 @@ pub struct Outcome {
     pub snapshots: Option<Snapshots>,
 }
 
+/// An experiment's scene, loaded, and its camera path.
+pub struct Setup {
+    pub world: World,
+    pub identity: SceneIdentity,
+    /// The camera of every view along the path.
+    pub views: Vec<CameraConfig>,
+    /// Indices of the measured views.
+    pub measured: Vec<usize>,
+}
+
+/// The reference of one measured view.
+pub struct NeededReference {
+    pub view: usize,
+    /// Its key in the reference cache.
+    pub key: String,
+    /// What the reference path tracer renders (`spp` the reference's).
+    pub config: Config,
+    /// True when the cache holds it.
+    pub cached: bool,
+}
+
 pub struct Runner<'a> {
     pub spec: &'a Spec,
     /// Paths in the spec are relative to this folder.
@@ -60,9 +81,8 @@ pub struct Runner<'a> {
 }
 
 impl Runner<'_> {
-    /// Runs the whole experiment. When cancelled, returns what was measured so far with
-    /// `complete: false`.
-    pub fn run(&self) -> Result<Outcome, EvalError> {
+    /// Loads the experiment's scene and lays out its camera path.
+    pub fn setup(&self) -> Result<Setup, EvalError> {
         let spec = self.spec;
         let scene_path = spec.scene_path(&self.spec_dir);
         let options = spec.load_options(&self.spec_dir);
@@ -85,11 +105,49 @@ impl Runner<'_> {
                 scene.emissive_triangles.len()
             ),
         )?;
-        let first = spec.reference.config.light_selection;
         // One world; its light sampler follows each configuration's light selection.
-        let mut world = World::new(scene, first);
+        let world = World::new(scene, spec.reference.config.light_selection);
         let views = world.path_views(&spec.camera);
         let measured = spec.measured_views(views.len());
+        Ok(Setup {
+            world,
+            identity,
+            views,
+            measured,
+        })
+    }
+
+    /// The references the run measures against (one per measured view), and whether the
+    /// cache already holds each: what a cluster renders ahead of the run
+    /// (`pathlight eval --cluster`).
+    pub fn references(&self, setup: &Setup) -> Vec<NeededReference> {
+        setup
+            .measured
+            .iter()
+            .map(|&view| {
+                let config = self.spec.reference_config(&setup.views[view]);
+                let key = ReferenceCache::key(&setup.identity, &config);
+                let cached = self.cache.get(&key, config.width, config.height).is_some();
+                NeededReference {
+                    view,
+                    key,
+                    config,
+                    cached,
+                }
+            })
+            .collect()
+    }
+
+    /// Runs the whole experiment. When cancelled, returns what was measured so far with
+    /// `complete: false`.
+    pub fn run(&self) -> Result<Outcome, EvalError> {
+        let spec = self.spec;
+        let Setup {
+            mut world,
+            identity,
+            views,
+            measured,
+        } = self.setup()?;
         let mut results = Results {
             spec: spec.clone(),
             renderer: RENDERER_VERSION.to_owned(),

@@ -162,7 +162,7 @@ impl ReferenceCache {
         if let Some(found) = self.get(&key, config.width, config.height) {
             return Ok(Some(found));
         }
-        let (exr, json, ckpt) = self.paths(&key);
+        let (exr, _, ckpt) = self.paths(&key);
         let dir = exr.parent().expect("a file in a folder");
         std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir.to_owned(), e))?;
         let header = Header {
@@ -199,23 +199,40 @@ impl ReferenceCache {
                 last_checkpoint = Instant::now();
             }
         }
-        let render_seconds = start.elapsed().as_secs_f64();
-        write_film(&exr, &film, false, &Default::default())?;
-        let image = film_image(&film);
+        let (image, info) =
+            self.store(&key, scene, config, &film, start.elapsed().as_secs_f64())?;
+        let _ = std::fs::remove_file(&ckpt);
+        Ok(Some((image, info)))
+    }
+
+    /// Stores `film`, the finished reference `key` of `scene` rendered with `config` in
+    /// `render_seconds` (here, or on a cluster and merged), as the cache's image and
+    /// description.
+    pub fn store(
+        &self,
+        key: &str,
+        scene: &SceneIdentity,
+        config: &Config,
+        film: &Film,
+        render_seconds: f64,
+    ) -> Result<(Image, ReferenceInfo), EvalError> {
+        let (exr, json, _) = self.paths(key);
+        let dir = exr.parent().expect("a file in a folder");
+        std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir.to_owned(), e))?;
+        write_film(&exr, film, false, &Default::default())?;
         let info = ReferenceInfo {
-            key,
+            key: key.to_owned(),
             path: exr.clone(),
             scene: scene.description.clone(),
             config: config.clone(),
             renderer: RENDERER_VERSION.to_owned(),
             render_seconds,
-            expected_mse: expected_mse(&film),
+            expected_mse: expected_mse(film),
             cached: false,
         };
         let text = serde_json::to_vec_pretty(&info).expect("serialisable");
         write_atomic(&json, &text)?;
-        let _ = std::fs::remove_file(&ckpt);
-        Ok(Some((image, info)))
+        Ok((film_image(film), info))
     }
 }
 

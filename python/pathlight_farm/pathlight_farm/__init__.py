@@ -1,5 +1,5 @@
-"""pathlight renders split over a Dask cluster (see `farm.render`)."""
+"""pathlight renders split over a Dask cluster (see `farm.render` and `farm.eval_references`)."""
 
-from .farm import ranges, render, render_range
+from .farm import eval_references, ranges, render, render_range
 
-__all__ = ["ranges", "render", "render_range"]
+__all__ = ["eval_references", "ranges", "render", "render_range"]
