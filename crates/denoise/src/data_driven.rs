@@ -1,0 +1,413 @@
+//! Seed 001's data-driven filter (thesis chapter 6, Eqs. 6.8-6.21): a cross-bilateral filter
+//! over a `kernel x kernel` window, without a spatial Gaussian, guided by the pixel's features
+//! and their variances, with direct and indirect light filtered apart.
+//!
+//! ```text
+//! planes   features (F0..F5, variances)  -> padded feature planes (validity, depth, normal,
+//!                                           texture, texture2, direct, indirect)
+//! filter   planes, centre coefficients    -> image = filtered direct + filtered indirect
+//! ```
+//!
+//! For a centre pixel p the coefficients are `c_dc = 1/(2 sigma_direct^2)`, `c_ic =
+//! 1/(2 sigma_indirect^2)` and, per feature i, `c_f,i = 1/(2 sigma_i^2) (1 - clamp01(GB_i s_i))`
+//! with GB_i the feature's variance at p and s_i its scale: a feature that is itself noisy at p
+//! (an edge inside the pixel, depth of field) is trusted less. For each neighbour q:
+//!
+//! ```text
+//! w_f = exp(-c_f,depth dD^2 - c_f,normal |dN|^2 - c_f,texture |dT|^2)
+//! w_d = exp(-c_dc |dF0|^2) w_f                       (direct)
+//! w_i = exp(-c_ic |dF1|^2) w_f exp(-c_f,texture2 |dT2|^2)   (indirect)
+//! C   = sum(w_d F0_q) / sum(w_d) + sum(w_i F1_q) / sum(w_i)
+//! ```
+//!
+//! Choices the thesis leaves open, written down:
+//! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
+//!   and cancels in the normalisation, so it is not computed.
+//! - Depth and colour differences are measured as [`crate::config`] says (relative to the
+//!   centre by default; the thesis's units behind `depth_units` and `colour_units`). A depth
+//!   variance is scaled like the depth (divided by the centre's depth squared when relative).
+//! - **Sky and bad pixels.** A pixel whose depth is not finite (the sky) or any of whose inputs
+//!   is not finite (a NaN or infinite sample) is passed through unfiltered and is nobody's
+//!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not
+//!   neighbours either (the window is cut at the borders, not clamped).
+//! - Windows are laid over the padded planes 8 centre pixels at a time, one row of them: each
+//!   tap is then 8 neighbours next to each other in memory, which the compiler turns into
+//!   SIMD (AVX2 with fused multiply-adds where the processor has them, chosen at run time;
+//!   without, the results differ by float rounding). Rows run in parallel; every pixel's
+//!   result depends on the inputs alone, not on the thread count.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::config::{ColourUnits, DepthUnits, FilterConfig};
+use crate::exp::{exp_neg, Fused, MulAdd, Plain};
+use crate::features::{Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
+use crate::FilterError;
+
+/// Centre pixels filtered together: one SIMD register of f32 with AVX2.
+const LANES: usize = 8;
+type Lanes = [f32; LANES];
+
+/// The padded planes, one row of each after another: `VALID` (1 or 0), depth, normal, texture,
+/// texture2, direct and indirect light.
+const VALID: usize = 0;
+const D: usize = 1;
+const N: usize = 2;
+const T: usize = 5;
+const T2: usize = 8;
+const F0: usize = 11;
+const F1: usize = 14;
+const PLANES: usize = 17;
+
+/// The data-driven filter with its buffers (kept across frames).
+#[derive(Default)]
+pub struct DataDriven {
+    planes: Vec<f32>,
+    /// The planes' layout and the image's height (the padding is zero for these).
+    layout: Option<(Layout, usize)>,
+}
+
+/// The planes' geometry for one frame and window.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Layout {
+    width: usize,
+    radius: usize,
+    /// Floats per padded row of one plane.
+    pitch: usize,
+    /// Floats per padded row of all planes.
+    row: usize,
+}
+
+impl Layout {
+    fn new(width: usize, radius: usize) -> Self {
+        let pitch = width + 2 * radius + LANES;
+        Self {
+            width,
+            radius,
+            pitch,
+            row: pitch * PLANES,
+        }
+    }
+
+    /// Index of pixel (x, y) of the image in plane 0.
+    fn at(&self, x: usize, y: usize) -> usize {
+        (y + self.radius) * self.row + x + self.radius
+    }
+}
+
+impl DataDriven {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Filters `features` with `config`'s data-driven parameters into `out` (one value per
+    /// pixel: filtered direct plus filtered indirect light).
+    pub fn filter(
+        &mut self,
+        features: &Features,
+        config: &FilterConfig,
+        out: &mut [Vec3],
+    ) -> Result<(), FilterError> {
+        config.validate()?;
+        features.check()?;
+        if out.len() != features.len() {
+            return Err(FilterError::Size {
+                name: "output",
+                len: out.len(),
+                width: features.width,
+                height: features.height,
+            });
+        }
+        if features.is_empty() {
+            return Ok(());
+        }
+        let radius = (config.kernel / 2) as usize;
+        let layout = Layout::new(features.width, radius);
+        self.fill_planes(features, layout);
+        let step = if config.holes { 2 } else { 1 };
+        let offsets: Vec<usize> = (0..=2 * radius)
+            .step_by(step)
+            .flat_map(|dy| (0..=2 * radius).step_by(step).map(move |dx| (dy, dx)))
+            .map(|(dy, dx)| dy * layout.row + dx)
+            .collect();
+        let scales = Scales::new(config);
+        let planes = &self.planes;
+        out.par_chunks_mut(features.width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let job = Row {
+                    planes,
+                    layout,
+                    offsets: &offsets,
+                    scales: &scales,
+                    features,
+                    y,
+                };
+                job.run(row);
+            });
+        Ok(())
+    }
+
+    /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
+    /// the sky and bad pixels. The padding is zeroed when the layout changes and never
+    /// written after.
+    fn fill_planes(&mut self, f: &Features, layout: Layout) {
+        let rows = f.height + 2 * layout.radius;
+        if self.layout != Some((layout, f.height)) {
+            self.planes.clear();
+            self.planes.resize(rows * layout.row, 0.0);
+            self.layout = Some((layout, f.height));
+        }
+        let r = layout.radius;
+        self.planes[r * layout.row..(r + f.height) * layout.row]
+            .par_chunks_mut(layout.row)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for x in 0..f.width {
+                    let i = y * f.width + x;
+                    let values = [
+                        f.normal[i],
+                        f.albedo[i],
+                        f.texture2[i],
+                        f.direct[i],
+                        f.indirect[i],
+                    ];
+                    let valid = f.depth[i].is_finite() && values.iter().all(|v| v.is_finite());
+                    let at = |plane: usize| plane * layout.pitch + x + r;
+                    let zero_if_invalid = |v: f32| if valid { v } else { 0.0 };
+                    row[at(VALID)] = zero_if_invalid(1.0);
+                    row[at(D)] = zero_if_invalid(f.depth[i]);
+                    for (plane, v) in [N, T, T2, F0, F1].into_iter().zip(values) {
+                        for c in 0..3 {
+                            row[at(plane + c)] = zero_if_invalid(v[c]);
+                        }
+                    }
+                }
+            });
+    }
+}
+
+/// `1 / (2 sigma^2)` of each test.
+struct Scales {
+    direct: f32,
+    indirect: f32,
+    depth: f32,
+    normal: f32,
+    texture: f32,
+    texture2: f32,
+    variance: [f32; 5],
+    relative_depth: bool,
+    relative_colour: bool,
+}
+
+impl Scales {
+    fn new(c: &FilterConfig) -> Self {
+        let k = |s: f32| 1.0 / (2.0 * s * s);
+        Self {
+            direct: k(c.sigma_direct),
+            indirect: k(c.sigma_indirect),
+            depth: k(c.sigma_depth),
+            normal: k(c.sigma_normal),
+            texture: k(c.sigma_texture),
+            texture2: k(c.sigma_texture2),
+            variance: c.variance_scale,
+            relative_depth: c.depth_units == DepthUnits::Relative,
+            relative_colour: c.colour_units == ColourUnits::Relative,
+        }
+    }
+}
+
+/// One row of the image.
+struct Row<'a> {
+    planes: &'a [f32],
+    layout: Layout,
+    offsets: &'a [usize],
+    scales: &'a Scales,
+    features: &'a Features<'a>,
+    y: usize,
+}
+
+/// A centre pixel's values and coefficients, lane by lane.
+#[derive(Default)]
+struct Centre {
+    depth: Lanes,
+    normal: [Lanes; 3],
+    texture: [Lanes; 3],
+    texture2: [Lanes; 3],
+    direct: [Lanes; 3],
+    indirect: [Lanes; 3],
+    c_direct: Lanes,
+    c_indirect: Lanes,
+    c_depth: Lanes,
+    c_normal: Lanes,
+    c_texture: Lanes,
+    c_texture2: Lanes,
+}
+
+/// The weighted sums of one block of centres.
+#[derive(Default)]
+struct Sums {
+    direct_w: Lanes,
+    direct: [Lanes; 3],
+    indirect_w: Lanes,
+    indirect: [Lanes; 3],
+}
+
+impl Row<'_> {
+    fn run(&self, out: &mut [Vec3]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the processor has AVX2 and FMA (checked just above).
+            unsafe { self.run_avx2(out) };
+            return;
+        }
+        self.run_blocks::<Plain>(out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn run_avx2(&self, out: &mut [Vec3]) {
+        self.run_blocks::<Fused>(out);
+    }
+
+    #[inline(always)]
+    fn run_blocks<M: MulAdd>(&self, out: &mut [Vec3]) {
+        let width = self.layout.width;
+        for x0 in (0..width).step_by(LANES) {
+            let centre = self.centre(x0);
+            let sums = self.sums::<M>(x0, &centre);
+            for (j, o) in out[x0..(x0 + LANES).min(width)].iter_mut().enumerate() {
+                let i = self.y * width + x0 + j;
+                let f = self.features;
+                *o = if self.planes[self.layout.at(x0 + j, self.y)] == 0.0 {
+                    // Sky or a bad pixel: as it is.
+                    f.direct[i] + f.indirect[i]
+                } else {
+                    let d = Vec3::new(sums.direct[0][j], sums.direct[1][j], sums.direct[2][j]);
+                    let n = Vec3::new(
+                        sums.indirect[0][j],
+                        sums.indirect[1][j],
+                        sums.indirect[2][j],
+                    );
+                    d / sums.direct_w[j] + n / sums.indirect_w[j]
+                };
+            }
+        }
+    }
+
+    /// The block's centre values and coefficients (lanes past the row's end are padding).
+    #[inline(always)]
+    fn centre(&self, x0: usize) -> Centre {
+        let s = self.scales;
+        let l = &self.layout;
+        let base = l.at(x0, self.y);
+        let load = |plane: usize| -> Lanes {
+            let at = base + plane * l.pitch;
+            self.planes[at..at + LANES].try_into().expect("8 lanes")
+        };
+        let mut c = Centre {
+            depth: load(D),
+            ..Default::default()
+        };
+        for k in 0..3 {
+            c.normal[k] = load(N + k);
+            c.texture[k] = load(T + k);
+            c.texture2[k] = load(T2 + k);
+            c.direct[k] = load(F0 + k);
+            c.indirect[k] = load(F1 + k);
+        }
+        let width = l.width;
+        for j in 0..LANES {
+            let x = x0 + j;
+            let variance = if x < width {
+                self.features.variance[self.y * width + x]
+            } else {
+                [0.0; 5]
+            };
+            let depth_scale = if s.relative_depth {
+                1.0 / c.depth[j].max(1e-6)
+            } else {
+                1.0
+            };
+            // A variance that is not a number trusts the feature not at all.
+            let lowered = |k: f32, i: usize, v: f32| {
+                let t = v * s.variance[i];
+                k * (1.0 - if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) })
+            };
+            // The depth scale folded into the coefficient: c (dD / d)^2 = (c / d^2) dD^2.
+            let depth_variance = variance[DEPTH] * depth_scale * depth_scale;
+            c.c_depth[j] = lowered(s.depth, DEPTH, depth_variance) * depth_scale * depth_scale;
+            c.c_normal[j] = lowered(s.normal, NORMAL, variance[NORMAL]);
+            c.c_texture[j] = lowered(s.texture, TEXTURE, variance[TEXTURE]);
+            c.c_texture2[j] = lowered(s.texture2, TEXTURE2, variance[TEXTURE2]);
+            let colour = if s.relative_colour {
+                let total = Vec3::new(
+                    c.direct[0][j] + c.indirect[0][j],
+                    c.direct[1][j] + c.indirect[1][j],
+                    c.direct[2][j] + c.indirect[2][j],
+                );
+                let lum = total.dot(Vec3::new(0.2126, 0.7152, 0.0722)).max(0.0);
+                1.0 / ((1.0 + lum) * (1.0 + lum))
+            } else {
+                1.0
+            };
+            c.c_direct[j] = s.direct * colour;
+            c.c_indirect[j] = s.indirect * colour;
+        }
+        c
+    }
+
+    /// The weighted sums over the window of each centre of the block.
+    #[inline(always)]
+    fn sums<M: MulAdd>(&self, x0: usize, c: &Centre) -> Sums {
+        let l = &self.layout;
+        // The window's top-left corner of the first centre.
+        let corner = l.at(x0, self.y) - l.radius * l.row - l.radius;
+        let mut s = Sums::default();
+        let last = self.offsets.last().map_or(0, |o| corner + o) + (PLANES - 1) * l.pitch;
+        assert!(
+            last + LANES <= self.planes.len(),
+            "the window stays in the planes"
+        );
+        for &offset in self.offsets {
+            let base = corner + offset;
+            let load = |plane: usize| -> Lanes {
+                let at = base + plane * l.pitch;
+                // SAFETY: `offsets` grow, so `at + LANES <= last + LANES`, which is in bounds
+                // (asserted above).
+                unsafe { *(self.planes.as_ptr().add(at) as *const Lanes) }
+            };
+            let valid = load(VALID);
+            let depth = load(D);
+            let (n, t, t2, f0, f1) = (
+                [load(N), load(N + 1), load(N + 2)],
+                [load(T), load(T + 1), load(T + 2)],
+                [load(T2), load(T2 + 1), load(T2 + 2)],
+                [load(F0), load(F0 + 1), load(F0 + 2)],
+                [load(F1), load(F1 + 1), load(F1 + 2)],
+            );
+            for j in 0..LANES {
+                // k |a - b|^2 + plus.
+                let term = |a: &[Lanes; 3], b: &[Lanes; 3], k: f32, plus: f32| {
+                    let (x, y, z) = (a[0][j] - b[0][j], a[1][j] - b[1][j], a[2][j] - b[2][j]);
+                    M::mul_add(k, M::mul_add(x, x, M::mul_add(y, y, z * z)), plus)
+                };
+                let dd = depth[j] - c.depth[j];
+                let features = term(&n, &c.normal, c.c_normal[j], c.c_depth[j] * (dd * dd));
+                let features = term(&t, &c.texture, c.c_texture[j], features);
+                let wd = valid[j] * exp_neg::<M>(-term(&f0, &c.direct, c.c_direct[j], features));
+                let indirect = term(&t2, &c.texture2, c.c_texture2[j], features);
+                let wi =
+                    valid[j] * exp_neg::<M>(-term(&f1, &c.indirect, c.c_indirect[j], indirect));
+                s.direct_w[j] += wd;
+                s.indirect_w[j] += wi;
+                for k in 0..3 {
+                    s.direct[k][j] = M::mul_add(wd, f0[k][j], s.direct[k][j]);
+                    s.indirect[k][j] = M::mul_add(wi, f1[k][j], s.indirect[k][j]);
+                }
+            }
+        }
+        s
+    }
+}

@@ -1,0 +1,74 @@
+//! A frame's filter inputs: the thesis's FilterVector and feature variances, per pixel in
+//! row-major order.
+//!
+//! F0 `direct` (first-bounce direct light), F1 `indirect` (all later bounces), F2 `depth`
+//! (along the view axis; infinite on the sky), F3 `normal`, F4 `albedo` (the "texture": the
+//! albedo at the first hit), F5 `texture2` (the albedo at the first diffuse vertex after the
+//! first bounce), each the mean over the pixel's samples; `variance` holds, per pixel, the
+//! sample variance (n-1) of depth, normal, texture, first-bounce direction and texture2, each
+//! summed over its components.
+
+use glam::Vec3;
+
+use crate::FilterError;
+
+/// Indices into [`Features::variance`].
+pub const DEPTH: usize = 0;
+pub const NORMAL: usize = 1;
+pub const TEXTURE: usize = 2;
+pub const DIRECTION: usize = 3;
+pub const TEXTURE2: usize = 4;
+
+#[derive(Debug, Clone, Copy)]
+pub struct Features<'a> {
+    pub width: usize,
+    pub height: usize,
+    pub direct: &'a [Vec3],
+    pub indirect: &'a [Vec3],
+    pub depth: &'a [f32],
+    pub normal: &'a [Vec3],
+    pub albedo: &'a [Vec3],
+    pub texture2: &'a [Vec3],
+    pub variance: &'a [[f32; 5]],
+}
+
+impl Features<'_> {
+    /// Pixels in the frame.
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Checks that every buffer holds one value per pixel.
+    pub fn check(&self) -> Result<(), FilterError> {
+        let n = self.len();
+        for (name, len) in [
+            ("direct", self.direct.len()),
+            ("indirect", self.indirect.len()),
+            ("depth", self.depth.len()),
+            ("normal", self.normal.len()),
+            ("albedo", self.albedo.len()),
+            ("texture2", self.texture2.len()),
+            ("variance", self.variance.len()),
+        ] {
+            if len != n {
+                return Err(FilterError::Size {
+                    name,
+                    len,
+                    width: self.width,
+                    height: self.height,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// True for a sky pixel (no surface: the depth is not finite), which the filters pass
+    /// through.
+    pub fn is_sky(&self, i: usize) -> bool {
+        !self.depth[i].is_finite()
+    }
+}

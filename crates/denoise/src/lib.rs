@@ -1,0 +1,32 @@
+//! Reconstruction filters over screen-sized buffers (seed 001), with no dependency on the path
+//! tracer: they read a frame's noisy light and its features ([`Features`]) and write a clean
+//! image, so they can be tested on synthetic images with a known answer.
+//!
+//! - [`data_driven`]: the thesis's data-driven filter, a cross-bilateral filter guided by the
+//!   features, with direct and indirect light filtered apart (thesis Eqs. 6.8-6.21).
+//!
+//! One settings type, [`FilterConfig`] (`[frame.filter]` of pathlight's `Config`), chooses the
+//! method and holds its parameters.
+
+pub mod config;
+pub mod data_driven;
+mod exp;
+pub mod features;
+
+pub use config::{ColourUnits, DepthUnits, FilterConfig, Method};
+pub use data_driven::DataDriven;
+pub use features::Features;
+
+/// What a filter refuses, naming the parameter or buffer at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FilterError {
+    #[error("filter: {0}")]
+    Parameter(String),
+    #[error("filter: buffer `{name}` holds {len} values for a {width}x{height} frame")]
+    Size {
+        name: &'static str,
+        len: usize,
+        width: usize,
+        height: usize,
+    },
+}

@@ -1,0 +1,459 @@
+//! The data-driven filter on synthetic frames with a known answer: a straightforward
+//! per-pixel evaluation of the thesis's formulas (f64, the standard exp) agrees with the
+//! vectorised filter; a constant image stays constant; a feature edge is not blurred across;
+//! noise of known variance on a flat region falls by the window's pixel count; the sky passes
+//! through; a NaN stays in its pixel; the thread count changes nothing; bad parameters and
+//! buffers are refused.
+
+use glam::Vec3;
+use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method};
+
+/// A frame's buffers, owned.
+#[derive(Clone)]
+struct Frame {
+    width: usize,
+    height: usize,
+    direct: Vec<Vec3>,
+    indirect: Vec<Vec3>,
+    depth: Vec<f32>,
+    normal: Vec<Vec3>,
+    albedo: Vec<Vec3>,
+    texture2: Vec<Vec3>,
+    variance: Vec<[f32; 5]>,
+}
+
+impl Frame {
+    /// A flat grey wall facing the camera at depth 2.
+    fn flat(width: usize, height: usize, direct: Vec3, indirect: Vec3) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            direct: vec![direct; n],
+            indirect: vec![indirect; n],
+            depth: vec![2.0; n],
+            normal: vec![Vec3::Z; n],
+            albedo: vec![Vec3::splat(0.5); n],
+            texture2: vec![Vec3::splat(0.5); n],
+            variance: vec![[0.0; 5]; n],
+        }
+    }
+
+    fn features(&self) -> Features<'_> {
+        Features {
+            width: self.width,
+            height: self.height,
+            direct: &self.direct,
+            indirect: &self.indirect,
+            depth: &self.depth,
+            normal: &self.normal,
+            albedo: &self.albedo,
+            texture2: &self.texture2,
+            variance: &self.variance,
+        }
+    }
+
+    fn filter(&self, config: &FilterConfig) -> Vec<Vec3> {
+        let mut out = vec![Vec3::ZERO; self.width * self.height];
+        DataDriven::new()
+            .filter(&self.features(), config, &mut out)
+            .unwrap();
+        out
+    }
+}
+
+fn data_driven() -> FilterConfig {
+    FilterConfig {
+        method: Method::DataDriven,
+        ..FilterConfig::default()
+    }
+}
+
+/// A small deterministic generator (xorshift64*) with normal deviates.
+struct Rng(u64);
+
+impl Rng {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform().max(1e-300), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+
+    fn vec3(&mut self, lo: f32, hi: f32) -> Vec3 {
+        let mut c = || lo + (hi - lo) * self.uniform() as f32;
+        Vec3::new(c(), c(), c())
+    }
+}
+
+/// A frame with everything varying: two surfaces (a depth and normal edge), texture
+/// patches, noisy light, feature variances, a sky corner.
+fn busy(width: usize, height: usize, seed: u64) -> Frame {
+    let mut rng = Rng(seed);
+    let mut f = Frame::flat(width, height, Vec3::ZERO, Vec3::ZERO);
+    for y in 0..height {
+        for x in 0..width {
+            let i = y * width + x;
+            let right = x > width / 2;
+            f.depth[i] = if right { 3.0 + 0.01 * y as f32 } else { 1.5 };
+            f.normal[i] = if right {
+                Vec3::new(0.6, 0.0, 0.8)
+            } else {
+                Vec3::Z
+            };
+            f.albedo[i] = if (x / 5 + y / 4) % 2 == 0 {
+                Vec3::new(0.7, 0.6, 0.5)
+            } else {
+                Vec3::new(0.7, 0.65, 0.5)
+            };
+            f.texture2[i] = f.albedo[i] * 0.9 + rng.vec3(0.0, 0.05);
+            f.direct[i] = rng.vec3(0.0, 1.5);
+            f.indirect[i] = rng.vec3(0.0, 0.4);
+            f.variance[i] = [
+                rng.uniform() as f32 * 0.01,
+                rng.uniform() as f32 * 0.5,
+                rng.uniform() as f32 * 0.2,
+                rng.uniform() as f32,
+                rng.uniform() as f32 * 0.3,
+            ];
+            if x < 3 && y < 2 {
+                f.depth[i] = f32::INFINITY;
+            }
+        }
+    }
+    f
+}
+
+/// The thesis's formulas pixel by pixel, in f64 with the standard exp.
+fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
+    let k = |s: f32| 1.0 / (2.0 * s as f64 * s as f64);
+    let r = (c.kernel / 2) as i64;
+    let step = if c.holes { 2 } else { 1 };
+    let sq = |a: Vec3, b: Vec3| (a - b).as_dvec3().length_squared();
+    let mut out = vec![Vec3::ZERO; f.width * f.height];
+    for y in 0..f.height as i64 {
+        for x in 0..f.width as i64 {
+            let p = (y * f.width as i64 + x) as usize;
+            if !f.depth[p].is_finite() {
+                out[p] = f.direct[p] + f.indirect[p];
+                continue;
+            }
+            let v = f.variance[p];
+            let s = c.variance_scale;
+            let depth_scale = 1.0 / f.depth[p] as f64;
+            let low =
+                |kk: f64, var: f64, scale: f32| kk * (1.0 - (var * scale as f64).clamp(0.0, 1.0));
+            let c_depth = low(
+                k(c.sigma_depth),
+                v[0] as f64 * depth_scale * depth_scale,
+                s[0],
+            );
+            let c_normal = low(k(c.sigma_normal), v[1] as f64, s[1]);
+            let c_texture = low(k(c.sigma_texture), v[2] as f64, s[2]);
+            let c_texture2 = low(k(c.sigma_texture2), v[4] as f64, s[4]);
+            let lum = (f.direct[p] + f.indirect[p])
+                .dot(Vec3::new(0.2126, 0.7152, 0.0722))
+                .max(0.0) as f64;
+            let colour = 1.0 / ((1.0 + lum) * (1.0 + lum));
+            let (c_direct, c_indirect) = (k(c.sigma_direct) * colour, k(c.sigma_indirect) * colour);
+            let (mut wd_sum, mut wi_sum) = (0.0, 0.0);
+            let (mut d_sum, mut i_sum) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+            for dy in (-r..=r).step_by(step) {
+                for dx in (-r..=r).step_by(step) {
+                    let (qx, qy) = (x + dx, y + dy);
+                    if qx < 0 || qy < 0 || qx >= f.width as i64 || qy >= f.height as i64 {
+                        continue;
+                    }
+                    let q = (qy * f.width as i64 + qx) as usize;
+                    if !f.depth[q].is_finite() {
+                        continue;
+                    }
+                    let dd = (f.depth[q] - f.depth[p]) as f64 * depth_scale;
+                    let feat = c_depth * dd * dd
+                        + c_normal * sq(f.normal[q], f.normal[p])
+                        + c_texture * sq(f.albedo[q], f.albedo[p]);
+                    let wd = (-(c_direct * sq(f.direct[q], f.direct[p]) + feat)).exp();
+                    let wi = (-(c_indirect * sq(f.indirect[q], f.indirect[p])
+                        + feat
+                        + c_texture2 * sq(f.texture2[q], f.texture2[p])))
+                    .exp();
+                    wd_sum += wd;
+                    wi_sum += wi;
+                    d_sum += wd * f.direct[q].as_dvec3();
+                    i_sum += wi * f.indirect[q].as_dvec3();
+                }
+            }
+            out[p] = (d_sum / wd_sum + i_sum / wi_sum).as_vec3();
+        }
+    }
+    out
+}
+
+#[test]
+fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
+    // A width that is not a multiple of the 8 lanes, windows cut by every border.
+    let f = busy(37, 23, 7);
+    for (kernel, holes) in [(1, false), (5, false), (9, true), (21, false), (21, true)] {
+        let c = FilterConfig {
+            kernel,
+            holes,
+            ..data_driven()
+        };
+        let (got, want) = (f.filter(&c), reference(&f, &c));
+        let mut worst = 0.0f32;
+        for (g, w) in got.iter().zip(&want) {
+            worst = worst.max((*g - *w).abs().max_element() / w.abs().max_element().max(0.01));
+        }
+        assert!(worst < 1e-4, "kernel {kernel} holes {holes}: {worst}");
+        // The filter does something here (but for the 1x1 window).
+        let moved = got
+            .iter()
+            .zip(f.direct.iter().zip(&f.indirect))
+            .any(|(g, (d, i))| (*g - (*d + *i)).abs().max_element() > 0.01);
+        assert_eq!(moved, kernel > 1, "kernel {kernel}");
+    }
+}
+
+#[test]
+fn a_constant_image_stays_constant() {
+    let (d, i) = (Vec3::new(0.3, 0.5, 0.7), Vec3::new(0.05, 0.1, 0.02));
+    let f = Frame::flat(50, 30, d, i);
+    for holes in [false, true] {
+        let out = f.filter(&FilterConfig {
+            holes,
+            ..data_driven()
+        });
+        for o in out {
+            assert!((o - (d + i)).abs().max_element() < 1e-5, "{o}");
+        }
+    }
+}
+
+#[test]
+fn a_feature_edge_is_not_blurred_across() {
+    // Left: a wall facing the camera lit at 0.2; right: a wall at a right angle lit at 0.9.
+    // Each side's light is flat, so the filter must give each side its own value exactly
+    // (up to the edge weights of the normal test, exp(-16) per neighbour).
+    let mut f = Frame::flat(40, 20, Vec3::splat(0.2), Vec3::ZERO);
+    for y in 0..20 {
+        for x in 20..40 {
+            f.normal[y * 40 + x] = Vec3::X;
+            f.direct[y * 40 + x] = Vec3::splat(0.9);
+        }
+    }
+    let out = f.filter(&data_driven());
+    for y in 0..20 {
+        for x in 0..40 {
+            let want = if x < 20 { 0.2 } else { 0.9 };
+            let got = out[y * 40 + x];
+            assert!(
+                (got - Vec3::splat(want)).abs().max_element() < 1e-4,
+                "({x},{y}) {got}"
+            );
+        }
+    }
+    // The same light edge without a feature edge is blurred: the features are what keeps it.
+    let mut flat = f.clone();
+    flat.normal.fill(Vec3::Z);
+    let blurred = flat.filter(&data_driven());
+    assert!(blurred[10 * 40 + 19].x > 0.25, "{}", blurred[10 * 40 + 19]);
+}
+
+#[test]
+fn noise_on_a_flat_region_falls_by_the_window_size() {
+    // Independent noise of standard deviation 0.02 (direct) and 0.01 (indirect) on a flat
+    // wall: the colour tests then weigh every neighbour within 0.1% of 1, so the output is the
+    // window's mean and its variance the input's over the window's pixel count.
+    let (w, h) = (400, 300);
+    let mut rng = Rng(11);
+    let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
+    let (sd, si) = (0.02f64, 0.01f64);
+    for p in 0..w * h {
+        f.direct[p] = Vec3::splat(0.5)
+            + Vec3::new(
+                rng.normal() as f32,
+                rng.normal() as f32,
+                rng.normal() as f32,
+            ) * sd as f32;
+        f.indirect[p] = Vec3::splat(0.1)
+            + Vec3::new(
+                rng.normal() as f32,
+                rng.normal() as f32,
+                rng.normal() as f32,
+            ) * si as f32;
+    }
+    for (kernel, holes, taps) in [(7, false, 49.0), (21, false, 441.0), (21, true, 121.0)] {
+        let out = f.filter(&FilterConfig {
+            kernel,
+            holes,
+            ..data_driven()
+        });
+        let r = kernel as usize / 2;
+        let mut values = Vec::new();
+        for y in r..h - r {
+            for x in r..w - r {
+                let o = out[y * w + x];
+                values.extend([o.x as f64, o.y as f64, o.z as f64]);
+            }
+        }
+        let mean = values.iter().sum::<f64>() / values.len() as f64;
+        let var =
+            values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (values.len() - 1) as f64;
+        let expected = (sd * sd + si * si) / taps;
+        let ratio = var / expected;
+        // About 100-700 independent windows per channel: a few percent of spread.
+        assert!(
+            (ratio - 1.0).abs() < 0.2,
+            "kernel {kernel} holes {holes}: variance {var:.3e}, expected {expected:.3e}"
+        );
+        assert!((mean - 0.6).abs() < 1e-3, "{mean}");
+    }
+}
+
+#[test]
+fn sky_pixels_pass_through_and_light_nobody() {
+    let mut f = Frame::flat(30, 20, Vec3::splat(0.3), Vec3::splat(0.1));
+    for y in 0..20 {
+        for x in 0..10 {
+            let i = y * 30 + x;
+            f.depth[i] = f32::INFINITY;
+            f.direct[i] = Vec3::new(5.0 + x as f32, 2.0, 1.0);
+            f.indirect[i] = Vec3::ZERO;
+        }
+    }
+    let out = f.filter(&data_driven());
+    for y in 0..20 {
+        for x in 0..30 {
+            let i = y * 30 + x;
+            let want = if x < 10 {
+                f.direct[i]
+            } else {
+                Vec3::splat(0.4)
+            };
+            assert!(
+                (out[i] - want).abs().max_element() < 1e-5,
+                "({x},{y}) {}",
+                out[i]
+            );
+        }
+    }
+}
+
+#[test]
+fn a_nan_or_infinite_sample_stays_in_its_pixel() {
+    for bad in [f32::NAN, f32::INFINITY, 1e30] {
+        let mut f = Frame::flat(30, 20, Vec3::splat(0.3), Vec3::splat(0.1));
+        f.direct[10 * 30 + 15].y = bad;
+        f.normal[5 * 30 + 5].x = bad;
+        f.variance[3 * 30 + 20][1] = bad;
+        let out = f.filter(&data_driven());
+        for (i, o) in out.iter().enumerate() {
+            if i == 10 * 30 + 15 {
+                continue;
+            }
+            assert!(
+                (*o - Vec3::splat(0.4)).abs().max_element() < 1e-5,
+                "{bad}: pixel {i} {o}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_thread_count_changes_nothing() {
+    let f = busy(91, 47, 3);
+    let c = FilterConfig {
+        holes: true,
+        ..data_driven()
+    };
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| f.filter(&c))
+    };
+    let one = run(1);
+    for threads in [2, 3, 8] {
+        assert!(
+            run(threads)
+                .iter()
+                .zip(&one)
+                .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)),
+            "{threads} threads"
+        );
+    }
+}
+
+#[test]
+fn bad_parameters_and_buffers_are_refused() {
+    let f = Frame::flat(8, 4, Vec3::ONE, Vec3::ZERO);
+    let mut out = vec![Vec3::ZERO; 32];
+    let mut filter = DataDriven::new();
+    for c in [
+        FilterConfig {
+            kernel: 4,
+            ..data_driven()
+        },
+        FilterConfig {
+            sigma_texture: -0.1,
+            ..data_driven()
+        },
+        FilterConfig {
+            sigma_indirect: f32::NAN,
+            ..data_driven()
+        },
+    ] {
+        assert!(matches!(
+            filter.filter(&f.features(), &c, &mut out),
+            Err(FilterError::Parameter(_))
+        ));
+    }
+    let mut short = f.clone();
+    short.albedo.pop();
+    let e = filter
+        .filter(&short.features(), &data_driven(), &mut out)
+        .unwrap_err();
+    assert!(e.to_string().contains("albedo"), "{e}");
+    let e = filter
+        .filter(&f.features(), &data_driven(), &mut out[..31])
+        .unwrap_err();
+    assert!(e.to_string().contains("output"), "{e}");
+    // An empty frame is nothing to do.
+    let empty = Frame::flat(0, 0, Vec3::ONE, Vec3::ZERO);
+    filter
+        .filter(&empty.features(), &data_driven(), &mut [])
+        .unwrap();
+}
+
+#[test]
+fn a_filter_kept_across_frames_gives_what_a_new_one_gives() {
+    let c = data_driven();
+    let mut kept = DataDriven::new();
+    let mut run = |f: &Frame, c: &FilterConfig| {
+        let mut out = vec![Vec3::ZERO; f.width * f.height];
+        kept.filter(&f.features(), c, &mut out).unwrap();
+        out
+    };
+    let first = busy(37, 23, 1);
+    run(&first, &c);
+    // The next frame: pixels that were valid are now sky or bad, then another size and window.
+    let mut second = busy(37, 23, 2);
+    second.depth[100] = f32::INFINITY;
+    second.direct[200].x = f32::NAN;
+    let bits = |v: &[Vec3]| {
+        v.iter()
+            .map(|p| p.to_array().map(f32::to_bits))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&run(&second, &c)), bits(&second.filter(&c)));
+    let small = FilterConfig { kernel: 5, ..c };
+    let third = busy(20, 9, 3);
+    assert_eq!(bits(&run(&third, &small)), bits(&third.filter(&small)));
+    assert_eq!(bits(&run(&second, &c)), bits(&second.filter(&c)));
+}
