@@ -111,6 +111,11 @@ impl RenderArgs {
             ..Config::default()
         };
         let mut config = self.settings.apply(base)?;
+        if config.frame.filter.method != pathlight_render::denoise::Method::None {
+            bail!(
+                "--filter: `render` is the reference path tracer, which filters nothing (the filter runs in view, play, bench frame and eval)"
+            );
+        }
         if config.height == 0 {
             let a = aspect.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
             config.height = ((config.width as f32 / a).round() as u32).max(1);

@@ -15,10 +15,12 @@
 //!
 //! ```text
 //! w_f = exp(-c_f,depth dD^2 - c_f,normal |dN|^2 - c_f,texture |dT|^2)
-//! w_d = exp(-c_dc |dF0|^2) w_f                       (direct)
-//! w_i = exp(-c_ic |dF1|^2) w_f exp(-c_f,texture2 |dT2|^2)   (indirect)
+//! w_d = exp(-c_dc s |dF0|^2) w_f                       (direct)
+//! w_i = exp(-c_ic s |dF1|^2) w_f exp(-c_f,texture2 |dT2|^2)   (indirect)
 //! C   = sum(w_d F0_q) / sum(w_d) + sum(w_i F1_q) / sum(w_i)
 //! ```
+//!
+//! where `s` scales the colour differences as [`crate::config`] says (1 in the thesis).
 //!
 //! Choices the thesis leaves open, written down:
 //! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
@@ -49,7 +51,7 @@ const LANES: usize = 8;
 type Lanes = [f32; LANES];
 
 /// The padded planes, one row of each after another: `VALID` (1 or 0), depth, normal, texture,
-/// texture2, direct and indirect light.
+/// texture2, direct and indirect light, and the colour difference's scale.
 const VALID: usize = 0;
 const D: usize = 1;
 const N: usize = 2;
@@ -57,7 +59,9 @@ const T: usize = 5;
 const T2: usize = 8;
 const F0: usize = 11;
 const F1: usize = 14;
-const PLANES: usize = 17;
+/// `1 / (1 + luminance)` of the pixel's light (relative colour units), or 1.
+const SCALE: usize = 17;
+const PLANES: usize = 18;
 
 /// The data-driven filter with its buffers (kept across frames).
 #[derive(Default)]
@@ -123,7 +127,11 @@ impl DataDriven {
         }
         let radius = (config.kernel / 2) as usize;
         let layout = Layout::new(features.width, radius);
-        self.fill_planes(features, layout);
+        self.fill_planes(
+            features,
+            layout,
+            config.colour_units == ColourUnits::Relative,
+        );
         let step = if config.holes { 2 } else { 1 };
         let offsets: Vec<usize> = (0..=2 * radius)
             .step_by(step)
@@ -151,7 +159,7 @@ impl DataDriven {
     /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
     /// the sky and bad pixels. The padding is zeroed when the layout changes and never
     /// written after.
-    fn fill_planes(&mut self, f: &Features, layout: Layout) {
+    fn fill_planes(&mut self, f: &Features, layout: Layout, relative_colour: bool) {
         let rows = f.height + 2 * layout.radius;
         if self.layout != Some((layout, f.height)) {
             self.planes.clear();
@@ -182,6 +190,11 @@ impl DataDriven {
                             row[at(plane + c)] = zero_if_invalid(v[c]);
                         }
                     }
+                    row[at(SCALE)] = zero_if_invalid(if relative_colour {
+                        1.0 / (1.0 + luminance(f.direct[i] + f.indirect[i]).max(0.0))
+                    } else {
+                        1.0
+                    });
                 }
             });
     }
@@ -198,6 +211,11 @@ struct Scales {
     variance: [f32; 5],
     relative_depth: bool,
     relative_colour: bool,
+}
+
+/// Rec. 709 luminance.
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 impl Scales {
@@ -341,14 +359,14 @@ impl Row<'_> {
             c.c_normal[j] = lowered(s.normal, NORMAL, variance[NORMAL]);
             c.c_texture[j] = lowered(s.texture, TEXTURE, variance[TEXTURE]);
             c.c_texture2[j] = lowered(s.texture2, TEXTURE2, variance[TEXTURE2]);
+            // The centre's half of the colour scale (the neighbour's is its plane).
             let colour = if s.relative_colour {
                 let total = Vec3::new(
                     c.direct[0][j] + c.indirect[0][j],
                     c.direct[1][j] + c.indirect[1][j],
                     c.direct[2][j] + c.indirect[2][j],
                 );
-                let lum = total.dot(Vec3::new(0.2126, 0.7152, 0.0722)).max(0.0);
-                1.0 / ((1.0 + lum) * (1.0 + lum))
+                1.0 / (1.0 + luminance(total).max(0.0))
             } else {
                 1.0
             };
@@ -379,6 +397,7 @@ impl Row<'_> {
                 unsafe { *(self.planes.as_ptr().add(at) as *const Lanes) }
             };
             let valid = load(VALID);
+            let scale = load(SCALE);
             let depth = load(D);
             let (n, t, t2, f0, f1) = (
                 [load(N), load(N + 1), load(N + 2)],
@@ -396,10 +415,16 @@ impl Row<'_> {
                 let dd = depth[j] - c.depth[j];
                 let features = term(&n, &c.normal, c.c_normal[j], c.c_depth[j] * (dd * dd));
                 let features = term(&t, &c.texture, c.c_texture[j], features);
-                let wd = valid[j] * exp_neg::<M>(-term(&f0, &c.direct, c.c_direct[j], features));
+                let wd = valid[j]
+                    * exp_neg::<M>(-term(&f0, &c.direct, c.c_direct[j] * scale[j], features));
                 let indirect = term(&t2, &c.texture2, c.c_texture2[j], features);
-                let wi =
-                    valid[j] * exp_neg::<M>(-term(&f1, &c.indirect, c.c_indirect[j], indirect));
+                let wi = valid[j]
+                    * exp_neg::<M>(-term(
+                        &f1,
+                        &c.indirect,
+                        c.c_indirect[j] * scale[j],
+                        indirect,
+                    ));
                 s.direct_w[j] += wd;
                 s.indirect_w[j] += wi;
                 for k in 0..3 {

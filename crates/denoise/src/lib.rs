@@ -20,8 +20,14 @@ pub use features::Features;
 /// What a filter refuses, naming the parameter or buffer at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FilterError {
-    #[error("filter: {0}")]
-    Parameter(String),
+    /// A parameter out of range, named by its place in pathlight's configuration
+    /// (`frame.filter.kernel`).
+    #[error("{field} {value}: must be {requirement}")]
+    Parameter {
+        field: &'static str,
+        value: String,
+        requirement: String,
+    },
     #[error("filter: buffer `{name}` holds {len} values for a {width}x{height} frame")]
     Size {
         name: &'static str,

@@ -156,11 +156,11 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
             let c_normal = low(k(c.sigma_normal), v[1] as f64, s[1]);
             let c_texture = low(k(c.sigma_texture), v[2] as f64, s[2]);
             let c_texture2 = low(k(c.sigma_texture2), v[4] as f64, s[4]);
-            let lum = (f.direct[p] + f.indirect[p])
-                .dot(Vec3::new(0.2126, 0.7152, 0.0722))
-                .max(0.0) as f64;
-            let colour = 1.0 / ((1.0 + lum) * (1.0 + lum));
-            let (c_direct, c_indirect) = (k(c.sigma_direct) * colour, k(c.sigma_indirect) * colour);
+            let lum = |i: usize| {
+                (f.direct[i] + f.indirect[i])
+                    .dot(Vec3::new(0.2126, 0.7152, 0.0722))
+                    .max(0.0) as f64
+            };
             let (mut wd_sum, mut wi_sum) = (0.0, 0.0);
             let (mut d_sum, mut i_sum) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
             for dy in (-r..=r).step_by(step) {
@@ -177,6 +177,10 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                     let feat = c_depth * dd * dd
                         + c_normal * sq(f.normal[q], f.normal[p])
                         + c_texture * sq(f.albedo[q], f.albedo[p]);
+                    // Colour differences over the geometric mean of 1 + luminance.
+                    let colour = 1.0 / ((1.0 + lum(p)) * (1.0 + lum(q)));
+                    let (c_direct, c_indirect) =
+                        (k(c.sigma_direct) * colour, k(c.sigma_indirect) * colour);
                     let wd = (-(c_direct * sq(f.direct[q], f.direct[p]) + feat)).exp();
                     let wi = (-(c_indirect * sq(f.indirect[q], f.indirect[p])
                         + feat
@@ -411,7 +415,7 @@ fn bad_parameters_and_buffers_are_refused() {
     ] {
         assert!(matches!(
             filter.filter(&f.features(), &c, &mut out),
-            Err(FilterError::Parameter(_))
+            Err(FilterError::Parameter { .. })
         ));
     }
     let mut short = f.clone();

@@ -102,11 +102,13 @@ impl ReferenceCache {
     /// The key of a reference of `scene` rendered with `config` (camera included). The
     /// real-time pipeline's settings (`config.frame`) do not count: the reference path tracer
     /// never reads them, and a new technique's switches must not invalidate every reference.
+    /// The `frame` table is left out of the hash altogether, so that a technique's new
+    /// settings (with their defaults) do not change the keys of existing references either.
     pub fn key(scene: &SceneIdentity, config: &Config) -> String {
-        let traced = Config {
-            frame: Default::default(),
-            ..config.clone()
-        };
+        let mut traced = serde_json::to_value(config).expect("a Config serialises");
+        if let Some(table) = traced.as_object_mut() {
+            table.remove("frame");
+        }
         let mut h = Sha256::new();
         h.update(RENDERER_VERSION.as_bytes());
         h.update(scene.digest);
@@ -266,6 +268,7 @@ mod tests {
         frame.frame.reprojection.enabled = true;
         frame.frame.adaptive.max_spp = 7;
         frame.frame.accumulate = false;
+        frame.frame.filter.kernel = 5;
         assert_eq!(
             ReferenceCache::key(&scene, &base),
             ReferenceCache::key(&scene, &frame)

@@ -12,6 +12,7 @@ use crate::frame::reprojection::ReprojectionConfig;
 use crate::frame::restir::RestirConfig;
 use crate::light::LightSelection;
 use crate::sampler::SamplerKind;
+use pathlight_denoise::{FilterConfig, FilterError};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -57,6 +58,8 @@ pub struct FrameConfig {
     pub reprojection: ReprojectionConfig,
     /// Seed 004's ReSTIR direct illumination at the first hit.
     pub restir: RestirConfig,
+    /// Seed 001's reconstruction filter of the accumulated image.
+    pub filter: FilterConfig,
 }
 
 impl Default for FrameConfig {
@@ -67,6 +70,7 @@ impl Default for FrameConfig {
             adaptive: AdaptiveConfig::default(),
             reprojection: ReprojectionConfig::default(),
             restir: RestirConfig::default(),
+            filter: FilterConfig::default(),
         }
     }
 }
@@ -259,6 +263,22 @@ impl Config {
         self.frame.adaptive.validate()?;
         self.frame.reprojection.validate()?;
         self.frame.restir.validate()?;
+        self.frame.filter.validate().map_err(|e| match e {
+            FilterError::Parameter {
+                field,
+                value,
+                requirement,
+            } => ConfigError {
+                field,
+                value,
+                requirement,
+            },
+            other => ConfigError {
+                field: "frame.filter",
+                value: String::new(),
+                requirement: other.to_string(),
+            },
+        })?;
         if self.frame.restir.enabled
             && (self.frame.adaptive.enabled || self.frame.reprojection.enabled)
         {

@@ -24,4 +24,6 @@ pub use camera::Camera;
 pub use config::Config;
 pub use film::Film;
 pub use frame::Pipeline;
+/// Seed 001's reconstruction filters (the `frame.filter` settings and the filters).
+pub use pathlight_denoise as denoise;
 pub use world::World;

@@ -218,8 +218,8 @@ fn every_display_mode_shows_the_box() {
         assert_eq!(pipeline.rgba.len(), 40 * 30 * 4);
         let distinct: std::collections::HashSet<&[u8]> = pipeline.rgba.chunks(4).collect();
         // Uniform here: samples (every pixel has as many), metallic (zero in the box), motion
-        // (the camera is still), seed 000's and seed 004's modes (their techniques are off;
-        // see tests/reprojection.rs and tests/restir.rs).
+        // (the camera is still), seed 000's, seed 004's and seed 001's modes (their techniques
+        // are off; see tests/reprojection.rs, tests/restir.rs and tests/filter.rs).
         let uniform = matches!(
             mode,
             DisplayMode::Samples
@@ -230,6 +230,11 @@ fn every_display_mode_shows_the_box() {
                 | DisplayMode::Rejection
                 | DisplayMode::ReservoirM
                 | DisplayMode::ReservoirWeight
+                | DisplayMode::VarianceDepth
+                | DisplayMode::VarianceNormal
+                | DisplayMode::VarianceTexture
+                | DisplayMode::VarianceDirection
+                | DisplayMode::VarianceTexture2
         );
         // Roughness: the walls' 1 and the open front's sky.
         let least = if mode == DisplayMode::Roughness { 2 } else { 4 };

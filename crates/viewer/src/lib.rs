@@ -43,6 +43,10 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Space", "pause or resume rendering"),
     ("A", "accumulation on or off"),
     ("R", "restart accumulation"),
+    (
+        "G",
+        "reconstruction filter (seed 001, data-driven) on or off",
+    ),
     ("P", "save the shown frame as a PNG in the current folder"),
     ("Esc", "quit"),
 ];
@@ -236,6 +240,14 @@ impl Viewer {
                 Key::Space => self.set_paused(!self.paused),
                 Key::A => self.config.frame.accumulate = !self.config.frame.accumulate,
                 Key::R => self.worker.reset(),
+                Key::G => {
+                    use pathlight_render::denoise::Method;
+                    let f = &mut self.config.frame.filter;
+                    f.method = match f.method {
+                        Method::None => Method::DataDriven,
+                        _ => Method::None,
+                    };
+                }
                 Key::P => self.save_screenshot(),
                 Key::Plus | Key::Equals => self.config.display.exposure *= 2f32.sqrt(),
                 Key::Minus => self.config.display.exposure /= 2f32.sqrt(),

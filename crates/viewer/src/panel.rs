@@ -4,10 +4,11 @@
 use eframe::egui;
 use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
+use pathlight_render::denoise::{ColourUnits, DepthUnits, Method};
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
-use pathlight_render::frame::{ACCUMULATE, DISPLAY, LIGHTING, PRIMARY, REPROJECT, RESTIR};
+use pathlight_render::frame::{ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR};
 use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
 
@@ -118,7 +119,7 @@ fn display(v: &mut Viewer, ui: &mut egui::Ui) {
     egui::ComboBox::from_label("mode")
         .selected_text(format!("{} ({})", d.mode.name(), d.mode.pass()))
         .show_ui(ui, |ui| {
-            for pass in [ACCUMULATE, REPROJECT, LIGHTING, RESTIR, PRIMARY] {
+            for pass in [FILTER, ACCUMULATE, REPROJECT, LIGHTING, RESTIR, PRIMARY] {
                 ui.label(egui::RichText::new(pass).strong());
                 for m in DisplayMode::ALL.into_iter().filter(|m| m.pass() == pass) {
                     ui.selectable_value(&mut d.mode, m, m.name());
@@ -317,6 +318,10 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     });
     ui.separator();
 
+    ui.label(egui::RichText::new(FILTER).strong());
+    filter(c, ui);
+    ui.separator();
+
     ui.label(egui::RichText::new(DISPLAY).strong());
     ui.label("tone mapping and display modes: see Display above");
 }
@@ -357,4 +362,65 @@ fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
     } else if c.frame.adaptive.enabled || c.frame.reprojection.enabled {
         c.frame.restir.enabled = false;
     }
+}
+
+/// Seed 001's reconstruction filter: the method and its parameters (changing them does not
+/// restart the accumulation).
+fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
+    let f = &mut c.frame.filter;
+    egui::ComboBox::from_label("reconstruction filter (seed 001)")
+        .selected_text(match f.method {
+            Method::None => "none",
+            Method::DataDriven => "data-driven",
+            Method::Svgf => "svgf",
+        })
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut f.method, Method::None, "none");
+            ui.selectable_value(&mut f.method, Method::DataDriven, "data-driven");
+        });
+    ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
+        let mut radius = f.kernel / 2;
+        ui.add(egui::Slider::new(&mut radius, 0..=27).text("kernel radius (width 2r+1)"));
+        f.kernel = 2 * radius + 1;
+        ui.checkbox(&mut f.holes, "with holes (every other pixel)");
+        let sigma = |ui: &mut egui::Ui, v: &mut f32, what: &str| {
+            ui.add(
+                egui::Slider::new(v, 0.01..=10.0)
+                    .logarithmic(true)
+                    .text(what),
+            );
+        };
+        sigma(ui, &mut f.sigma_direct, "sigma direct light");
+        sigma(ui, &mut f.sigma_indirect, "sigma indirect light");
+        sigma(ui, &mut f.sigma_depth, "sigma depth");
+        sigma(ui, &mut f.sigma_normal, "sigma normal");
+        sigma(ui, &mut f.sigma_texture, "sigma texture");
+        sigma(ui, &mut f.sigma_texture2, "sigma texture2");
+        for (i, name) in ["depth", "normal", "texture", "direction", "texture2"]
+            .into_iter()
+            .enumerate()
+        {
+            ui.add(
+                egui::Slider::new(&mut f.variance_scale[i], 0.0..=100.0)
+                    .logarithmic(true)
+                    .text(format!("variance scale {name}")),
+            );
+        }
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut f.depth_units, DepthUnits::Relative, "depth relative");
+            ui.radio_value(
+                &mut f.depth_units,
+                DepthUnits::Scene,
+                "depth in scene units",
+            );
+        });
+        ui.horizontal(|ui| {
+            ui.radio_value(
+                &mut f.colour_units,
+                ColourUnits::Relative,
+                "colour relative",
+            );
+            ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "colour linear");
+        });
+    });
 }

@@ -19,9 +19,12 @@ use super::restir::Reservoir;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum DisplayMode {
-    /// The accumulated image (mean radiance over the frames so far).
+    /// The image: the accumulated mean radiance over the frames so far, filtered when the
+    /// reconstruction filter (seed 001) is on.
     #[default]
     Final,
+    /// The accumulated image before the reconstruction filter (its input light).
+    Accumulated,
     /// This frame's radiance alone (the pipeline's noisy input).
     Noisy,
     /// Accumulated direct light (from emitters straight to the first surface).
@@ -68,12 +71,24 @@ pub enum DisplayMode {
     /// ReSTIR: each reservoir's contribution weight W, as a heat map of its logarithm over the
     /// image's range (dark grey: W = 0, no sample or an occluded one).
     ReservoirWeight,
+    /// Filter: the sample variance of the depth, relative to the depth squared, as a heat map
+    /// 0 to 1 (dark grey when the filter is off).
+    VarianceDepth,
+    /// Filter: the variance of the normal (summed over x, y, z), heat map 0 to 1.
+    VarianceNormal,
+    /// Filter: the variance of the texture (albedo at the first hit), heat map 0 to 1.
+    VarianceTexture,
+    /// Filter: the variance of the first bounce's direction, heat map 0 to 1.
+    VarianceDirection,
+    /// Filter: the variance of texture2, heat map 0 to 1.
+    VarianceTexture2,
 }
 
 impl DisplayMode {
     /// Every mode with its pass, in menu order.
-    pub const ALL: [DisplayMode; 20] = [
+    pub const ALL: [DisplayMode; 26] = [
         DisplayMode::Final,
+        DisplayMode::Accumulated,
         DisplayMode::Noisy,
         DisplayMode::Direct,
         DisplayMode::Indirect,
@@ -93,12 +108,18 @@ impl DisplayMode {
         DisplayMode::FrameDirect,
         DisplayMode::ReservoirM,
         DisplayMode::ReservoirWeight,
+        DisplayMode::VarianceDepth,
+        DisplayMode::VarianceNormal,
+        DisplayMode::VarianceTexture,
+        DisplayMode::VarianceDirection,
+        DisplayMode::VarianceTexture2,
     ];
 
     /// The name in configurations and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             DisplayMode::Final => "final",
+            DisplayMode::Accumulated => "accumulated",
             DisplayMode::Noisy => "noisy",
             DisplayMode::Direct => "direct",
             DisplayMode::Indirect => "indirect",
@@ -118,6 +139,11 @@ impl DisplayMode {
             DisplayMode::FrameDirect => "frame-direct",
             DisplayMode::ReservoirM => "reservoir-m",
             DisplayMode::ReservoirWeight => "reservoir-weight",
+            DisplayMode::VarianceDepth => "variance-depth",
+            DisplayMode::VarianceNormal => "variance-normal",
+            DisplayMode::VarianceTexture => "variance-texture",
+            DisplayMode::VarianceDirection => "variance-direction",
+            DisplayMode::VarianceTexture2 => "variance-texture2",
         }
     }
 
@@ -125,7 +151,9 @@ impl DisplayMode {
     pub fn pass(self) -> &'static str {
         use DisplayMode::*;
         match self {
-            Final | Direct | Indirect | Variance | Samples | Probability => super::ACCUMULATE,
+            Accumulated | Direct | Indirect | Variance | Samples | Probability => super::ACCUMULATE,
+            Final | VarianceDepth | VarianceNormal | VarianceTexture | VarianceDirection
+            | VarianceTexture2 => super::FILTER,
             Reprojected | Rejection => super::REPROJECT,
             Noisy | FrameDirect | BounceAlbedo | BounceDirection => super::LIGHTING,
             ReservoirM | ReservoirWeight => super::RESTIR,
@@ -138,6 +166,7 @@ impl DisplayMode {
         matches!(
             self,
             DisplayMode::Final
+                | DisplayMode::Accumulated
                 | DisplayMode::Noisy
                 | DisplayMode::Direct
                 | DisplayMode::Indirect
@@ -170,6 +199,11 @@ pub struct Sources<'a> {
     pub reprojection: &'a Reprojection,
     /// ReSTIR's reservoirs of the last frame (empty when it never ran).
     pub reservoirs: &'a [Reservoir],
+    /// The reconstruction filter's output (empty when it is off).
+    pub filtered: &'a [Vec3],
+    /// The feature variances the filter read (empty when it is off): depth, normal, texture,
+    /// direction, texture2.
+    pub feature_variance: &'a [[f32; 5]],
 }
 
 impl Sources<'_> {
@@ -182,8 +216,18 @@ impl Sources<'_> {
         let g = &self.gbuffer.pixels[i];
         let l = &self.lighting[i];
         let h = &self.history[i];
+        let feature_variance = |k: usize| {
+            let v = self.feature_variance.get(i).map_or(-1.0, |v| v[k]);
+            if k == 0 && v >= 0.0 {
+                // Relative to the depth squared, as the filter reads it.
+                Vec3::splat(v / (g.depth * g.depth).max(1e-12))
+            } else {
+                Vec3::splat(v)
+            }
+        };
         match mode {
-            DisplayMode::Final => h.mean(),
+            DisplayMode::Final => self.filtered.get(i).copied().unwrap_or_else(|| h.mean()),
+            DisplayMode::Accumulated => h.mean(),
             DisplayMode::Noisy => l.stats.mean(),
             DisplayMode::Direct => h.direct.mean,
             DisplayMode::Indirect => h.indirect.mean,
@@ -211,6 +255,11 @@ impl Sources<'_> {
             DisplayMode::ReservoirWeight => {
                 Vec3::splat(self.reservoirs.get(i).map_or(0.0, |r| r.weight))
             }
+            DisplayMode::VarianceDepth => feature_variance(0),
+            DisplayMode::VarianceNormal => feature_variance(1),
+            DisplayMode::VarianceTexture => feature_variance(2),
+            DisplayMode::VarianceDirection => feature_variance(3),
+            DisplayMode::VarianceTexture2 => feature_variance(4),
         }
     }
 
@@ -245,7 +294,9 @@ impl Sources<'_> {
         let radiance = |v: Vec3| srgb.encode3(tonemap(v * display.exposure, display.tonemap));
         match mode {
             // The usual mode, with its own loop.
-            DisplayMode::Final => fill(out, |i| radiance(self.history[i].mean())),
+            DisplayMode::Final if self.filtered.is_empty() => {
+                fill(out, |i| radiance(self.history[i].mean()))
+            }
             m if m.is_radiance() => fill(out, |i| radiance(self.value(mode, i))),
             DisplayMode::Albedo | DisplayMode::BounceAlbedo => {
                 fill(out, |i| srgb.encode3(self.value(mode, i)))
@@ -288,6 +339,18 @@ impl Sources<'_> {
                 }
             }),
             DisplayMode::Rejection => fill(out, |i| self.reprojection.fate(i).colour()),
+            DisplayMode::VarianceDepth
+            | DisplayMode::VarianceNormal
+            | DisplayMode::VarianceTexture
+            | DisplayMode::VarianceDirection
+            | DisplayMode::VarianceTexture2 => fill(out, |i| {
+                let v = self.value(mode, i).x;
+                if v < 0.0 {
+                    [40, 40, 40]
+                } else {
+                    viridis(v.min(1.0))
+                }
+            }),
             DisplayMode::ReservoirM => {
                 let max = self
                     .reservoirs

@@ -8,6 +8,8 @@
 //! lighting    G-buffer, plan                      -> lighting (direct / indirect statistics,
 //!                                                    first bounce)
 //! accumulate  lighting, history (states)          -> history (running statistics over frames)
+//! filter      history, G-buffer, lighting         -> filtered image (seed 001, when on;
+//!                                                    [`filter`])
 //! display     history, lighting, G-buffer, ...    -> 8-bit RGBA of the chosen display mode
 //! ```
 //!
@@ -33,6 +35,7 @@
 pub mod accumulation;
 pub mod adaptive;
 pub mod display;
+pub mod filter;
 pub mod gbuffer;
 pub mod lighting;
 pub mod ping_pong;
@@ -69,9 +72,11 @@ pub const RESTIR: &str = "restir";
 pub const RESTIR_TEMPORAL: &str = "restir temporal";
 pub const RESTIR_SPATIAL: &str = "restir spatial";
 pub const ACCUMULATE: &str = "accumulate";
+/// Seed 001's reconstruction filter.
+pub const FILTER: &str = "filter";
 pub const DISPLAY: &str = "display";
 /// Every pass, in the order a frame runs them.
-pub const PASSES: [&str; 8] = [
+pub const PASSES: [&str; 9] = [
     REPROJECT,
     PRIMARY,
     RESTIR,
@@ -79,6 +84,7 @@ pub const PASSES: [&str; 8] = [
     RESTIR_SPATIAL,
     LIGHTING,
     ACCUMULATE,
+    FILTER,
     DISPLAY,
 ];
 
@@ -162,6 +168,8 @@ pub struct Pipeline {
     pub reprojection: Reprojection,
     /// ReSTIR's reservoirs (seed 004).
     pub restir: Restir,
+    /// The reconstruction filter's features and output (seed 001).
+    pub filter: filter::Filter,
     /// The frame's first hits, kept for the whole frame when ReSTIR runs (its passes need
     /// every pixel's surface before the lighting pass).
     hits: Vec<Vec<PrimaryHit>>,
@@ -200,6 +208,7 @@ impl Pipeline {
             adaptive: Adaptive::default(),
             reprojection: Reprojection::default(),
             restir: Restir::default(),
+            filter: filter::Filter::default(),
             hits: Vec::new(),
             epoch: 0,
             frames: 0,
@@ -220,14 +229,16 @@ impl Pipeline {
     }
 
     /// Replaces the configuration. Anything that changes the image (camera, resolution,
-    /// samples, passes) starts a new epoch at the next frame; the display settings and
-    /// `max_frames` do not. A change of the view alone (position, direction, up, field of
-    /// view) is a camera move, which forward reprojection survives.
+    /// samples, passes) starts a new epoch at the next frame; the display settings,
+    /// `max_frames` and the reconstruction filter (a post-process of the history) do not. A
+    /// change of the view alone (position, direction, up, field of view) is a camera move,
+    /// which forward reprojection survives.
     pub fn set_config(&mut self, config: &Config) {
         let image = |c: &Config| Config {
             display: Default::default(),
             frame: crate::config::FrameConfig {
                 max_frames: 0,
+                filter: Default::default(),
                 ..c.frame.clone()
             },
             ..c.clone()
@@ -562,6 +573,30 @@ impl Pipeline {
             self.previous_camera = self.camera.clone();
         }
         self.frame_number += 1;
+        let method = self.config.frame.filter.method;
+        if method != pathlight_denoise::Method::None {
+            let t = Instant::now();
+            if traced {
+                self.filter
+                    .gather(world, self.epoch, &self.gbuffer, &self.lighting);
+            }
+            let (w, h) = (self.config.width as usize, self.config.height as usize);
+            if self
+                .filter
+                .run(&self.config.frame.filter, &self.history, w, h)
+                .is_err()
+            {
+                // Not reached: the configuration was validated and the buffers are the
+                // frame's. Show the unfiltered image rather than a stale one.
+                self.filter.clear();
+            }
+            passes.push(PassTime {
+                pass: FILTER,
+                ms: t.elapsed().as_secs_f64() * 1e3,
+            });
+        } else if !self.filter.image.is_empty() {
+            self.filter.clear();
+        }
         let spp = if techniques {
             let total: u64 = self.history.par_iter().map(|h| h.n as u64).sum();
             (total / self.history.len().max(1) as u64) as u32
@@ -609,6 +644,7 @@ impl Pipeline {
         let techniques = self.adaptive.probability.capacity() * size_of::<f32>()
             + self.reprojection.bytes()
             + self.restir.bytes()
+            + self.filter.bytes()
             + self.hits.iter().map(|r| r.capacity()).sum::<usize>() * size_of::<PrimaryHit>();
         (plain, techniques)
     }
@@ -622,10 +658,12 @@ impl Pipeline {
             probability: &self.adaptive.probability,
             reprojection: &self.reprojection,
             reservoirs: self.restir.shaded(),
+            filtered: &self.filter.image,
+            feature_variance: &self.filter.variance,
         }
     }
 
-    /// The accumulated image (mean radiance), row-major.
+    /// The image (mean radiance, filtered when the filter is on), row-major.
     pub fn image(&self) -> Vec<glam::Vec3> {
         self.sources().linear(DisplayMode::Final)
     }
