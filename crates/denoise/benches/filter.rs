@@ -1,6 +1,6 @@
-//! The data-driven filter's time per frame on a synthetic 640x360 frame (two walls, texture
-//! patches, noisy light), with all the machine's threads: kernels 1 (the fixed cost: the planes), 7, 15, 21, 25 and 55, with
-//! and without holes.
+//! The data-driven filter's time per frame on a synthetic frame (two walls, texture patches,
+//! noisy light), with all the machine's threads: at 640x360 kernels 1 (the fixed cost: the
+//! planes), 7, 15, 21, 25 and 55, with and without holes; at 320x240 and 1280x720 kernel 21.
 //!
 //! `cargo bench -p pathlight-denoise --bench filter`
 
@@ -24,7 +24,16 @@ impl Rng {
 }
 
 fn bench(c: &mut Criterion) {
-    let (w, h) = (640, 360);
+    for (w, h, kernels) in [
+        (640, 360, &[1, 7, 15, 21, 25, 55][..]),
+        (320, 240, &[21][..]),
+        (1280, 720, &[21][..]),
+    ] {
+        size(c, w, h, kernels);
+    }
+}
+
+fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
     let mut rng = Rng(1);
     let n = w * h;
     let (mut depth, mut normal, mut albedo) = (vec![0.0; n], vec![Vec3::Z; n], vec![Vec3::ZERO; n]);
@@ -63,9 +72,9 @@ fn bench(c: &mut Criterion) {
     };
     let mut filter = DataDriven::new();
     let mut out = vec![Vec3::ZERO; n];
-    let mut group = c.benchmark_group("data-driven 640x360");
+    let mut group = c.benchmark_group(format!("data-driven {w}x{h}"));
     group.sample_size(20);
-    for kernel in [1, 7, 15, 21, 25, 55] {
+    for &kernel in kernels {
         for holes in [false, true] {
             let config = FilterConfig {
                 method: Method::DataDriven,

@@ -15,6 +15,7 @@
 //!   alone blurred the Cornell box's light into its ceiling: measured, linear MSE 16x the
 //!   unfiltered image's). The thesis's colours are display values in about 0..1, where this is
 //!   close to its test. `colour_units = "linear"` is the thesis's test on radiance as it is.
+//! - **Demodulation** (`demodulate`, on): the light is filtered divided by the albedo.
 //! - **Variance scales** `s_f` (depth, normal, texture, direction, texture2) are not published;
 //!   1 each by choice.
 
@@ -85,6 +86,9 @@ pub struct FilterConfig {
     pub variance_scale: [f32; 5],
     pub depth_units: DepthUnits,
     pub colour_units: ColourUnits,
+    /// Data-driven: filter the light divided by the albedo (the illumination), then multiply
+    /// it back (not in the thesis).
+    pub demodulate: bool,
 }
 
 impl Default for FilterConfig {
@@ -104,6 +108,7 @@ impl Default for FilterConfig {
             variance_scale: [1.0; 5],
             depth_units: DepthUnits::Relative,
             colour_units: ColourUnits::Relative,
+            demodulate: true,
         }
     }
 }

@@ -23,6 +23,11 @@
 //! where `s` scales the colour differences as [`crate::config`] says (1 in the thesis).
 //!
 //! Choices the thesis leaves open, written down:
+//! - **Demodulation** (`demodulate`, not in the thesis; on by default): the direct and indirect
+//!   light are divided by the pixel's albedo (each channel at least 0.01) before filtering and
+//!   multiplied by it after, as SVGF does, so that the filter smooths the illumination and not
+//!   the texture. Off, the thesis's filter blurs texture detail its texture test lets through
+//!   (measured on textured scenes: BENCHMARKS.md, "Seed 001").
 //! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
 //!   and cancels in the normalisation, so it is not computed.
 //! - Depth and colour differences are measured as [`crate::config`] says (relative to the
@@ -131,6 +136,7 @@ impl DataDriven {
             features,
             layout,
             config.colour_units == ColourUnits::Relative,
+            config.demodulate,
         );
         let step = if config.holes { 2 } else { 1 };
         let offsets: Vec<usize> = (0..=2 * radius)
@@ -159,7 +165,13 @@ impl DataDriven {
     /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
     /// the sky and bad pixels. The padding is zeroed when the layout changes and never
     /// written after.
-    fn fill_planes(&mut self, f: &Features, layout: Layout, relative_colour: bool) {
+    fn fill_planes(
+        &mut self,
+        f: &Features,
+        layout: Layout,
+        relative_colour: bool,
+        demodulate: bool,
+    ) {
         let rows = f.height + 2 * layout.radius;
         if self.layout != Some((layout, f.height)) {
             self.planes.clear();
@@ -173,12 +185,17 @@ impl DataDriven {
             .for_each(|(y, row)| {
                 for x in 0..f.width {
                     let i = y * f.width + x;
+                    let albedo = if demodulate {
+                        demodulator(f.albedo[i])
+                    } else {
+                        Vec3::ONE
+                    };
                     let values = [
                         f.normal[i],
                         f.albedo[i],
                         f.texture2[i],
-                        f.direct[i],
-                        f.indirect[i],
+                        f.direct[i] / albedo,
+                        f.indirect[i] / albedo,
                     ];
                     let valid = f.depth[i].is_finite() && values.iter().all(|v| v.is_finite());
                     let at = |plane: usize| plane * layout.pitch + x + r;
@@ -191,7 +208,7 @@ impl DataDriven {
                         }
                     }
                     row[at(SCALE)] = zero_if_invalid(if relative_colour {
-                        1.0 / (1.0 + luminance(f.direct[i] + f.indirect[i]).max(0.0))
+                        1.0 / (1.0 + luminance(values[3] + values[4]).max(0.0))
                     } else {
                         1.0
                     });
@@ -211,6 +228,13 @@ struct Scales {
     variance: [f32; 5],
     relative_depth: bool,
     relative_colour: bool,
+    demodulate: bool,
+}
+
+/// What demodulation divides a pixel's light by: its albedo, each channel at least 0.01 (a
+/// black surface's light is then filtered as it is, near enough).
+fn demodulator(albedo: Vec3) -> Vec3 {
+    albedo.max(Vec3::splat(0.01))
 }
 
 /// Rec. 709 luminance.
@@ -231,6 +255,7 @@ impl Scales {
             variance: c.variance_scale,
             relative_depth: c.depth_units == DepthUnits::Relative,
             relative_colour: c.colour_units == ColourUnits::Relative,
+            demodulate: c.demodulate,
         }
     }
 }
@@ -308,7 +333,12 @@ impl Row<'_> {
                         sums.indirect[1][j],
                         sums.indirect[2][j],
                     );
-                    d / sums.direct_w[j] + n / sums.indirect_w[j]
+                    let light = d / sums.direct_w[j] + n / sums.indirect_w[j];
+                    if self.scales.demodulate {
+                        light * demodulator(f.albedo[i])
+                    } else {
+                        light
+                    }
                 };
             }
         }

@@ -34,6 +34,8 @@ pub struct GPixel {
     /// frame's film, minus where it is now, in pixels (zero on the first frame, and where the
     /// point was behind the previous camera).
     pub motion: Vec2,
+    /// The first hit is on a light source (an emissive triangle of the light list).
+    pub emitter: bool,
 }
 
 /// Where a camera path goes on after its first hit: what the primary pass hands the lighting
@@ -57,6 +59,7 @@ impl Default for GPixel {
             material: NO_MATERIAL,
             depth: f32::INFINITY,
             motion: Vec2::ZERO,
+            emitter: false,
         }
     }
 }
@@ -121,6 +124,11 @@ pub fn primary(
             material: v.surface.material,
             depth: v.hit.t * ray.direction.dot(camera.forward()),
             motion: now_and_then(&|c| c.project(v.surface.p)),
+            emitter: tracer
+                .world
+                .lights
+                .triangle_light(v.surface.instance, v.surface.triangle)
+                .is_some(),
         },
         None => GPixel {
             motion: now_and_then(&|c| c.project_direction(ray.direction)),

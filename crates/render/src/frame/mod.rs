@@ -578,7 +578,7 @@ impl Pipeline {
             let t = Instant::now();
             if traced {
                 self.filter
-                    .gather(world, self.epoch, &self.gbuffer, &self.lighting);
+                    .gather(self.epoch, &self.gbuffer, &self.lighting);
             }
             let (w, h) = (self.config.width as usize, self.config.height as usize);
             if self
