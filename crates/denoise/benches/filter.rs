@@ -59,6 +59,7 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
     let variance: Vec<[f32; 5]> = (0..n)
         .map(|_| [rng.next() * 0.01, rng.next() * 0.1, 0.0, 0.5, 0.0])
         .collect();
+    let light_variance = vec![[0.01f32, 0.001]; n];
     let features = Features {
         width: w,
         height: h,
@@ -69,6 +70,7 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
         albedo: &albedo,
         texture2: &albedo,
         variance: &variance,
+        light_variance: &light_variance,
     };
     let mut filter = DataDriven::new();
     let mut out = vec![Vec3::ZERO; n];

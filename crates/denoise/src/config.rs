@@ -1,20 +1,23 @@
 //! `[frame.filter]`: which reconstruction filter runs on the frame, and its parameters.
 //!
 //! The data-driven filter's defaults are the thesis's final parameters (Table 7.2: kernel 21,
-//! sigma direct colour 0.75, indirect colour 0.5, depth 1.75, normal 0.25, texture 0.1,
-//! direction 0.75, texture2 0.1), except where the thesis's units do not carry across scenes:
+//! sigma depth 1.75, normal 0.25, texture 0.1, direction 0.75, texture2 0.1, colour direct 0.75
+//! and indirect 0.5), except where the thesis's units do not carry across scenes or samples:
 //! - **Depth** is compared relative to the centre pixel's own depth (`depth_units =
 //!   "relative"`): `(d_q - d_p) / d_p`, so the test means the same in a room and a city.
 //!   The thesis compares scene units with sigma 1.75; its scenes (a Cornell box seen from about
 //!   3.5 units) make that about 0.5 of the depth, the default here. `depth_units = "scene"`
 //!   with `sigma_depth = 1.75` is the thesis's test.
-//! - **Colour** differences squared are divided by `(1 + L_p)(1 + L_q)`, the luminances of the
-//!   centre's and the neighbour's light (`colour_units = "relative"`), so that a bright
-//!   region's noise is not mistaken for an edge and exposure matters less, while a light
-//!   source next to a dim wall stays apart from it either way round (dividing by the centre's
-//!   alone blurred the Cornell box's light into its ceiling: measured, linear MSE 16x the
-//!   unfiltered image's). The thesis's colours are display values in about 0..1, where this is
-//!   close to its test. `colour_units = "linear"` is the thesis's test on radiance as it is.
+//! - **Colour** differences squared are divided by the product of the centre's and the
+//!   neighbour's standard errors of the mean (`colour_units = "variance"`, sigma 4 for direct
+//!   and indirect light): the test follows the noise, as SVGF's luminance test does, so the
+//!   filter smooths noise and keeps what the samples agree on, and fades as they accumulate.
+//!   The thesis's test on radiance as it is (`colour_units = "linear"`, sigmas 0.75 and 0.5)
+//!   never converges: its error stops falling while the unfiltered image's goes on (measured,
+//!   BENCHMARKS.md "Seed 001": at 32 spp 0.68-2.9x the unfiltered CIELUV MSE, against
+//!   0.12-1.2x in variance units). `colour_units = "relative"` divides by
+//!   `(1 + L_p)(1 + L_q)`, the luminances of the two pixels' light (dividing by the centre's
+//!   alone blurred the Cornell box's light into its ceiling).
 //! - **Demodulation** (`demodulate`, on): the light is filtered divided by the albedo.
 //! - **Variance scales** `s_f` (depth, normal, texture, direction, texture2) are not published;
 //!   1 each by choice.
@@ -53,10 +56,15 @@ pub enum DepthUnits {
 #[serde(rename_all = "kebab-case")]
 pub enum ColourUnits {
     /// Squared differences over (1 + the centre's luminance)(1 + the neighbour's).
-    #[default]
     Relative,
     /// Radiance as it is (the thesis).
     Linear,
+    /// Squared differences over the product of the centre's and the neighbour's standard
+    /// errors of the mean ([`crate::Features::light_variance`], or the 3x3 neighbourhood's
+    /// where unknown): the test follows the noise, so the filter fades as samples accumulate
+    /// (SVGF's luminance test in this filter's form; sigmas of 2 to 4 suit it).
+    #[default]
+    Variance,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -69,9 +77,10 @@ pub struct FilterConfig {
     pub holes: bool,
     /// SVGF: a-trous iterations.
     pub atrous_iterations: u32,
-    /// Data-driven: sigma of the direct light's colour test.
+    /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
+    /// errors by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
-    /// Data-driven: sigma of the indirect light's colour test.
+    /// Data-driven: sigma of the indirect light's colour test (the thesis's 0.5).
     pub sigma_indirect: f32,
     pub sigma_depth: f32,
     pub sigma_normal: f32,
@@ -98,8 +107,8 @@ impl Default for FilterConfig {
             kernel: 21,
             holes: false,
             atrous_iterations: 5,
-            sigma_direct: 0.75,
-            sigma_indirect: 0.5,
+            sigma_direct: 4.0,
+            sigma_indirect: 4.0,
             sigma_depth: 0.5,
             sigma_normal: 0.25,
             sigma_texture: 0.1,
@@ -107,7 +116,7 @@ impl Default for FilterConfig {
             sigma_texture2: 0.1,
             variance_scale: [1.0; 5],
             depth_units: DepthUnits::Relative,
-            colour_units: ColourUnits::Relative,
+            colour_units: ColourUnits::Variance,
             demodulate: true,
         }
     }

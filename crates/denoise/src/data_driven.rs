@@ -64,14 +64,21 @@ const T: usize = 5;
 const T2: usize = 8;
 const F0: usize = 11;
 const F1: usize = 14;
-/// `1 / (1 + luminance)` of the pixel's light (relative colour units), or 1.
-const SCALE: usize = 17;
-const PLANES: usize = 18;
+/// The colour differences' scales of the direct and indirect light at the pixel (each a test
+/// multiplies the centre's and the neighbour's): `1 / (1 + luminance)` of the pixel's light
+/// (relative units), `1 / standard error` of its mean (variance units), or 1.
+const SCALE_D: usize = 17;
+const SCALE_I: usize = 18;
+const PLANES: usize = 19;
 
 /// The data-driven filter with its buffers (kept across frames).
 #[derive(Default)]
 pub struct DataDriven {
     planes: Vec<f32>,
+    /// Variance units: each pixel's demodulated luminance of direct and indirect light, and
+    /// the standard errors of their means.
+    luminance: Vec<[f32; 2]>,
+    errors: Vec<[f32; 2]>,
     /// The planes' layout and the image's height (the padding is zero for these).
     layout: Option<(Layout, usize)>,
 }
@@ -132,12 +139,7 @@ impl DataDriven {
         }
         let radius = (config.kernel / 2) as usize;
         let layout = Layout::new(features.width, radius);
-        self.fill_planes(
-            features,
-            layout,
-            config.colour_units == ColourUnits::Relative,
-            config.demodulate,
-        );
+        self.fill_planes(features, layout, config.colour_units, config.demodulate);
         let step = if config.holes { 2 } else { 1 };
         let offsets: Vec<usize> = (0..=2 * radius)
             .step_by(step)
@@ -165,19 +167,36 @@ impl DataDriven {
     /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
     /// the sky and bad pixels. The padding is zeroed when the layout changes and never
     /// written after.
-    fn fill_planes(
-        &mut self,
-        f: &Features,
-        layout: Layout,
-        relative_colour: bool,
-        demodulate: bool,
-    ) {
+    fn fill_planes(&mut self, f: &Features, layout: Layout, units: ColourUnits, demodulate: bool) {
         let rows = f.height + 2 * layout.radius;
         if self.layout != Some((layout, f.height)) {
             self.planes.clear();
             self.planes.resize(rows * layout.row, 0.0);
             self.layout = Some((layout, f.height));
         }
+        let albedo = |i: usize| {
+            if demodulate {
+                demodulator(f.albedo[i])
+            } else {
+                Vec3::ONE
+            }
+        };
+        let valid = |i: usize| {
+            f.depth[i].is_finite()
+                && [
+                    f.normal[i],
+                    f.albedo[i],
+                    f.texture2[i],
+                    f.direct[i],
+                    f.indirect[i],
+                ]
+                .iter()
+                .all(|v| v.is_finite())
+        };
+        if units == ColourUnits::Variance {
+            self.standard_errors(f, &albedo, &valid);
+        }
+        let errors = &self.errors;
         let r = layout.radius;
         self.planes[r * layout.row..(r + f.height) * layout.row]
             .par_chunks_mut(layout.row)
@@ -185,19 +204,15 @@ impl DataDriven {
             .for_each(|(y, row)| {
                 for x in 0..f.width {
                     let i = y * f.width + x;
-                    let albedo = if demodulate {
-                        demodulator(f.albedo[i])
-                    } else {
-                        Vec3::ONE
-                    };
+                    let a = albedo(i);
                     let values = [
                         f.normal[i],
                         f.albedo[i],
                         f.texture2[i],
-                        f.direct[i] / albedo,
-                        f.indirect[i] / albedo,
+                        f.direct[i] / a,
+                        f.indirect[i] / a,
                     ];
-                    let valid = f.depth[i].is_finite() && values.iter().all(|v| v.is_finite());
+                    let valid = valid(i);
                     let at = |plane: usize| plane * layout.pitch + x + r;
                     let zero_if_invalid = |v: f32| if valid { v } else { 0.0 };
                     row[at(VALID)] = zero_if_invalid(1.0);
@@ -207,13 +222,76 @@ impl DataDriven {
                             row[at(plane + c)] = zero_if_invalid(v[c]);
                         }
                     }
-                    row[at(SCALE)] = zero_if_invalid(if relative_colour {
-                        1.0 / (1.0 + luminance(values[3] + values[4]).max(0.0))
-                    } else {
-                        1.0
-                    });
+                    let lum = luminance(values[3] + values[4]).max(0.0);
+                    let [sd, si] = match units {
+                        ColourUnits::Linear => [1.0; 2],
+                        ColourUnits::Relative => [1.0 / (1.0 + lum); 2],
+                        ColourUnits::Variance => {
+                            // At most 100 / (1 + L): a pixel without noise is not a wall.
+                            let floor = 0.01 * (1.0 + lum);
+                            errors[i].map(|e| 1.0 / e.max(floor))
+                        }
+                    };
+                    row[at(SCALE_D)] = zero_if_invalid(sd);
+                    row[at(SCALE_I)] = zero_if_invalid(si);
                 }
             });
+    }
+
+    /// The standard error of the mean of the direct and indirect light's luminance
+    /// (demodulated) at every pixel, into `errors`: from the pixel's own variance where the
+    /// caller knows it, else from the 3x3 neighbourhood's variance (a single sample's).
+    fn standard_errors(
+        &mut self,
+        f: &Features,
+        albedo: &(dyn Fn(usize) -> Vec3 + Sync),
+        valid: &(dyn Fn(usize) -> bool + Sync),
+    ) {
+        let n = f.len();
+        self.luminance.resize(n, [0.0; 2]);
+        self.luminance
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, l)| {
+                let a = luminance(albedo(i));
+                *l = if valid(i) {
+                    [luminance(f.direct[i]) / a, luminance(f.indirect[i]) / a]
+                } else {
+                    [f32::NAN; 2]
+                };
+            });
+        let lum = &self.luminance;
+        let (w, h) = (f.width, f.height);
+        self.errors.resize(n, [0.0; 2]);
+        self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
+            let a = luminance(albedo(i));
+            for k in 0..2 {
+                let known = f.light_variance[i][k];
+                let variance = if known.is_finite() && known >= 0.0 {
+                    known / (a * a)
+                } else {
+                    // The 3x3 neighbourhood's sample variance (valid pixels only).
+                    let (x, y) = (i % w, i / w);
+                    let (mut count, mut sum, mut sq) = (0.0f32, 0.0f32, 0.0f32);
+                    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                            let v = lum[yy * w + xx][k];
+                            if v.is_finite() {
+                                count += 1.0;
+                                sum += v;
+                                sq += v * v;
+                            }
+                        }
+                    }
+                    if count > 1.0 {
+                        ((sq - sum * sum / count) / (count - 1.0)).max(0.0)
+                    } else {
+                        0.0
+                    }
+                };
+                e[k] = variance.sqrt();
+            }
+        });
     }
 }
 
@@ -227,7 +305,6 @@ struct Scales {
     texture2: f32,
     variance: [f32; 5],
     relative_depth: bool,
-    relative_colour: bool,
     demodulate: bool,
 }
 
@@ -254,7 +331,6 @@ impl Scales {
             texture2: k(c.sigma_texture2),
             variance: c.variance_scale,
             relative_depth: c.depth_units == DepthUnits::Relative,
-            relative_colour: c.colour_units == ColourUnits::Relative,
             demodulate: c.demodulate,
         }
     }
@@ -279,6 +355,8 @@ struct Centre {
     texture2: [Lanes; 3],
     direct: [Lanes; 3],
     indirect: [Lanes; 3],
+    scale_direct: Lanes,
+    scale_indirect: Lanes,
     c_direct: Lanes,
     c_indirect: Lanes,
     c_depth: Lanes,
@@ -356,6 +434,8 @@ impl Row<'_> {
         };
         let mut c = Centre {
             depth: load(D),
+            scale_direct: load(SCALE_D),
+            scale_indirect: load(SCALE_I),
             ..Default::default()
         };
         for k in 0..3 {
@@ -389,19 +469,9 @@ impl Row<'_> {
             c.c_normal[j] = lowered(s.normal, NORMAL, variance[NORMAL]);
             c.c_texture[j] = lowered(s.texture, TEXTURE, variance[TEXTURE]);
             c.c_texture2[j] = lowered(s.texture2, TEXTURE2, variance[TEXTURE2]);
-            // The centre's half of the colour scale (the neighbour's is its plane).
-            let colour = if s.relative_colour {
-                let total = Vec3::new(
-                    c.direct[0][j] + c.indirect[0][j],
-                    c.direct[1][j] + c.indirect[1][j],
-                    c.direct[2][j] + c.indirect[2][j],
-                );
-                1.0 / (1.0 + luminance(total).max(0.0))
-            } else {
-                1.0
-            };
-            c.c_direct[j] = s.direct * colour;
-            c.c_indirect[j] = s.indirect * colour;
+            // The centre's half of the colour scales (the neighbour's is its plane).
+            c.c_direct[j] = s.direct * c.scale_direct[j];
+            c.c_indirect[j] = s.indirect * c.scale_indirect[j];
         }
         c
     }
@@ -427,7 +497,7 @@ impl Row<'_> {
                 unsafe { *(self.planes.as_ptr().add(at) as *const Lanes) }
             };
             let valid = load(VALID);
-            let scale = load(SCALE);
+            let (scale_d, scale_i) = (load(SCALE_D), load(SCALE_I));
             let depth = load(D);
             let (n, t, t2, f0, f1) = (
                 [load(N), load(N + 1), load(N + 2)],
@@ -446,13 +516,13 @@ impl Row<'_> {
                 let features = term(&n, &c.normal, c.c_normal[j], c.c_depth[j] * (dd * dd));
                 let features = term(&t, &c.texture, c.c_texture[j], features);
                 let wd = valid[j]
-                    * exp_neg::<M>(-term(&f0, &c.direct, c.c_direct[j] * scale[j], features));
+                    * exp_neg::<M>(-term(&f0, &c.direct, c.c_direct[j] * scale_d[j], features));
                 let indirect = term(&t2, &c.texture2, c.c_texture2[j], features);
                 let wi = valid[j]
                     * exp_neg::<M>(-term(
                         &f1,
                         &c.indirect,
-                        c.c_indirect[j] * scale[j],
+                        c.c_indirect[j] * scale_i[j],
                         indirect,
                     ));
                 s.direct_w[j] += wd;

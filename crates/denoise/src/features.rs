@@ -6,7 +6,8 @@
 //! albedo at the first hit), F5 `texture2` (the albedo at the first diffuse vertex after the
 //! first bounce), each the mean over the pixel's samples; `variance` holds, per pixel, the
 //! sample variance (n-1) of depth, normal, texture, first-bounce direction and texture2, each
-//! summed over its components.
+//! summed over its components; `light_variance` the variance of the mean of the light's
+//! luminance.
 
 use glam::Vec3;
 
@@ -30,6 +31,10 @@ pub struct Features<'a> {
     pub albedo: &'a [Vec3],
     pub texture2: &'a [Vec3],
     pub variance: &'a [[f32; 5]],
+    /// The variance of the mean of the luminance of the direct and of the indirect light
+    /// (not demodulated); NaN where the caller does not know it (one sample). Read by the
+    /// variance colour units only.
+    pub light_variance: &'a [[f32; 2]],
 }
 
 impl Features<'_> {
@@ -53,6 +58,7 @@ impl Features<'_> {
             ("albedo", self.albedo.len()),
             ("texture2", self.texture2.len()),
             ("variance", self.variance.len()),
+            ("light_variance", self.light_variance.len()),
         ] {
             if len != n {
                 return Err(FilterError::Size {

@@ -6,7 +6,7 @@
 //! buffers are refused.
 
 use glam::Vec3;
-use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method};
+use pathlight_denoise::{ColourUnits, DataDriven, Features, FilterConfig, FilterError, Method};
 
 /// A frame's buffers, owned.
 #[derive(Clone)]
@@ -20,6 +20,7 @@ struct Frame {
     albedo: Vec<Vec3>,
     texture2: Vec<Vec3>,
     variance: Vec<[f32; 5]>,
+    light_variance: Vec<[f32; 2]>,
 }
 
 impl Frame {
@@ -36,6 +37,7 @@ impl Frame {
             albedo: vec![Vec3::splat(0.5); n],
             texture2: vec![Vec3::splat(0.5); n],
             variance: vec![[0.0; 5]; n],
+            light_variance: vec![[f32::NAN; 2]; n],
         }
     }
 
@@ -50,6 +52,7 @@ impl Frame {
             albedo: &self.albedo,
             texture2: &self.texture2,
             variance: &self.variance,
+            light_variance: &self.light_variance,
         }
     }
 
@@ -62,9 +65,14 @@ impl Frame {
     }
 }
 
+/// The filter with colour differences relative to the light's luminance, whose weights on
+/// small noise are known (within 0.1% of 1): the synthetic tests below need that.
 fn data_driven() -> FilterConfig {
     FilterConfig {
         method: Method::DataDriven,
+        colour_units: ColourUnits::Relative,
+        sigma_direct: 0.75,
+        sigma_indirect: 0.5,
         ..FilterConfig::default()
     }
 }
@@ -121,6 +129,7 @@ fn busy(width: usize, height: usize, seed: u64) -> Frame {
                 rng.uniform() as f32,
                 rng.uniform() as f32 * 0.3,
             ];
+            f.light_variance[i] = [rng.uniform() as f32 * 0.01, rng.uniform() as f32 * 0.002];
             if x < 3 && y < 2 {
                 f.depth[i] = f32::INFINITY;
             }
@@ -157,7 +166,6 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                 out[p] = f.direct[p] + f.indirect[p];
                 continue;
             }
-            if false {}
             let v = f.variance[p];
             let s = c.variance_scale;
             let depth_scale = 1.0 / f.depth[p] as f64;
@@ -171,10 +179,19 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
             let c_normal = low(k(c.sigma_normal), v[1] as f64, s[1]);
             let c_texture = low(k(c.sigma_texture), v[2] as f64, s[2]);
             let c_texture2 = low(k(c.sigma_texture2), v[4] as f64, s[4]);
-            let lum = |i: usize| {
-                (direct[i] + indirect[i])
-                    .dot(Vec3::new(0.2126, 0.7152, 0.0722))
-                    .max(0.0) as f64
+            let lum3 = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
+            let lum = |i: usize| lum3(direct[i] + indirect[i]).max(0.0);
+            // The colour differences' scales of pixel i: direct and indirect.
+            let scales = |i: usize| -> [f64; 2] {
+                match c.colour_units {
+                    ColourUnits::Linear => [1.0; 2],
+                    ColourUnits::Relative => [1.0 / (1.0 + lum(i)); 2],
+                    ColourUnits::Variance => {
+                        let a = lum3(albedo(i));
+                        let floor = 0.01 * (1.0 + lum(i));
+                        f.light_variance[i].map(|v| 1.0 / ((v as f64 / (a * a)).sqrt().max(floor)))
+                    }
+                }
             };
             let (mut wd_sum, mut wi_sum) = (0.0, 0.0);
             let (mut d_sum, mut i_sum) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
@@ -192,10 +209,11 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                     let feat = c_depth * dd * dd
                         + c_normal * sq(f.normal[q], f.normal[p])
                         + c_texture * sq(f.albedo[q], f.albedo[p]);
-                    // Colour differences over the geometric mean of 1 + luminance.
-                    let colour = 1.0 / ((1.0 + lum(p)) * (1.0 + lum(q)));
-                    let (c_direct, c_indirect) =
-                        (k(c.sigma_direct) * colour, k(c.sigma_indirect) * colour);
+                    let (sp, sq_) = (scales(p), scales(q));
+                    let (c_direct, c_indirect) = (
+                        k(c.sigma_direct) * sp[0] * sq_[0],
+                        k(c.sigma_indirect) * sp[1] * sq_[1],
+                    );
                     let wd = (-(c_direct * sq(direct[q], direct[p]) + feat)).exp();
                     let wi = (-(c_indirect * sq(indirect[q], indirect[p])
                         + feat
@@ -217,17 +235,19 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
 fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
     // A width that is not a multiple of the 8 lanes, windows cut by every border.
     let f = busy(37, 23, 7);
-    for (kernel, holes, demodulate) in [
-        (1, false, true),
-        (5, false, true),
-        (9, true, false),
-        (21, false, true),
-        (21, true, false),
+    for (kernel, holes, demodulate, colour_units) in [
+        (1, false, true, ColourUnits::Relative),
+        (5, false, true, ColourUnits::Variance),
+        (9, true, false, ColourUnits::Linear),
+        (21, false, true, ColourUnits::Relative),
+        (21, true, false, ColourUnits::Variance),
+        (21, false, true, ColourUnits::Variance),
     ] {
         let c = FilterConfig {
             kernel,
             holes,
             demodulate,
+            colour_units,
             ..data_driven()
         };
         let (got, want) = (f.filter(&c), reference(&f, &c));
@@ -510,4 +530,61 @@ fn demodulation_keeps_a_texture_under_even_light() {
     let contrast = |img: &[Vec3]| (img[12 * 48 + 26].x - img[12 * 48 + 24].x).abs();
     assert!((contrast(&kept) - 0.06).abs() < 1e-5, "{}", contrast(&kept));
     assert!(contrast(&blurred) < 0.04, "{}", contrast(&blurred));
+}
+
+#[test]
+fn variance_units_follow_the_noise() {
+    // A flat wall whose light steps from 0.4 to 0.6 halfway (a shadow's edge, no feature edge),
+    // with noise of standard deviation 0.2 per sample averaged over n samples. In variance
+    // units the colour test scales with the standard error: at 4 samples the flat parts are
+    // smoothed; at 4096 the step (100 standard errors) is kept where relative units blur it.
+    let (w, h) = (64, 32);
+    let image = |n: f32| {
+        let mut rng = Rng(5);
+        let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
+        let error = 0.2 / n.sqrt();
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let light = if x < w / 2 { 0.4 } else { 0.6 };
+                f.direct[i] = Vec3::splat(light + error * rng.normal() as f32);
+                f.light_variance[i] = [error * error, 0.0];
+            }
+        }
+        f
+    };
+    let variance = FilterConfig {
+        colour_units: ColourUnits::Variance,
+        sigma_direct: 3.0,
+        sigma_indirect: 3.0,
+        ..data_driven()
+    };
+    let noise = |img: &[Vec3]| {
+        // Spread of a flat 8x8 patch away from the step.
+        let v: Vec<f32> = (10..18)
+            .flat_map(|y| (4..12).map(move |x| img[y * w + x].x))
+            .collect();
+        let m = v.iter().sum::<f32>() / v.len() as f32;
+        (v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32).sqrt()
+    };
+    let few = image(4.0);
+    let out = few.filter(&variance);
+    assert!(
+        noise(&out) < 0.4 * noise(&few.direct),
+        "{} vs {}",
+        noise(&out),
+        noise(&few.direct)
+    );
+    let many = image(4096.0);
+    let step = |img: &[Vec3]| img[16 * w + w / 2].x - img[16 * w + w / 2 - 1].x;
+    let kept = step(&many.filter(&variance));
+    assert!((kept - 0.2).abs() < 0.02, "step {kept}");
+    let blurred = step(&many.filter(&data_driven()));
+    assert!(blurred < 0.1, "relative units: step {blurred}");
+    // Unknown variances (NaN) are estimated from the 3x3 neighbourhood: the flat parts of the
+    // 4-sample image are still smoothed.
+    let mut unknown = few.clone();
+    unknown.light_variance.fill([f32::NAN; 2]);
+    let out = unknown.filter(&variance);
+    assert!(noise(&out) < 0.5 * noise(&few.direct), "{}", noise(&out));
 }

@@ -415,12 +415,15 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             );
         });
         ui.horizontal(|ui| {
+            ui.label("colour differences");
             ui.radio_value(
                 &mut f.colour_units,
-                ColourUnits::Relative,
-                "colour relative",
+                ColourUnits::Variance,
+                "in standard errors",
             );
-            ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "colour linear");
+            ui.radio_value(&mut f.colour_units, ColourUnits::Relative, "relative");
+            ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "linear (thesis)");
         });
+        ui.checkbox(&mut f.demodulate, "demodulate by the albedo");
     });
 }

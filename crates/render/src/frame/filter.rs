@@ -107,6 +107,9 @@ pub struct Filter {
     texture2: Vec<Vec3>,
     /// The feature variances the filter read (display modes `variance-*`).
     pub variance: Vec<[f32; 5]>,
+    /// The variance of the mean of the direct and indirect light's luminance (NaN below two
+    /// samples).
+    light_variance: Vec<[f32; 2]>,
     /// The filtered image (empty when the filter is off).
     pub image: Vec<Vec3>,
     data_driven: DataDriven,
@@ -160,6 +163,7 @@ impl Filter {
         }
         self.depth.resize(n, 0.0);
         self.variance.resize(n, [0.0; 5]);
+        self.light_variance.resize(n, [0.0; 2]);
         self.stats.resize(n, FeatureStats::default());
         (
             &mut self.direct,
@@ -170,9 +174,20 @@ impl Filter {
             &mut self.texture2,
         )
             .into_par_iter()
-            .zip(self.variance.par_iter_mut())
+            .zip(
+                self.variance
+                    .par_iter_mut()
+                    .zip(self.light_variance.par_iter_mut()),
+            )
             .zip(history.par_iter().zip(self.stats.par_iter()))
-            .for_each(|(((d, i, depth, normal, albedo, t2), v), (h, s))| {
+            .for_each(|(((d, i, depth, normal, albedo, t2), (v, lv)), (h, s))| {
+                let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+                *lv = if h.n >= 2 {
+                    let k = 1.0 / ((h.n - 1) as f32 * h.n as f32);
+                    [lum(h.direct.m2) * k, lum(h.indirect.m2) * k]
+                } else {
+                    [f32::NAN; 2]
+                };
                 *d = h.direct.mean;
                 *i = h.indirect.mean;
                 // The sky and light sources pass through.
@@ -196,6 +211,7 @@ impl Filter {
             albedo: &self.albedo,
             texture2: &self.texture2,
             variance: &self.variance,
+            light_variance: &self.light_variance,
         };
         match config.method {
             Method::DataDriven => self.data_driven.filter(&features, config, &mut self.image),
