@@ -3,8 +3,10 @@
 //! and their variances, with direct and indirect light filtered apart.
 //!
 //! ```text
-//! planes   features (F0..F5, variances)  -> padded feature planes (validity, depth, normal,
-//!                                           texture, texture2, direct, indirect)
+//! errors   light, its variances            -> standard errors of the means (variance units)
+//! planes   features (F0..F5, variances),  -> padded feature planes (validity, depth, normal,
+//!          standard errors                   texture, texture2, direct, indirect, colour
+//!                                            scales)
 //! filter   planes, centre coefficients    -> image = filtered direct + filtered indirect
 //! ```
 //!
@@ -20,7 +22,10 @@
 //! C   = sum(w_d F0_q) / sum(w_d) + sum(w_i F1_q) / sum(w_i)
 //! ```
 //!
-//! where `s` scales the colour differences as [`crate::config`] says (1 in the thesis).
+//! where `s = s_p s_q` scales the colour differences as [`crate::config`] says: 1 in the
+//! thesis (`linear`), `1 / ((1 + L_p)(1 + L_q))` (`relative`), or `1 / (e_p e_q)` with `e` the
+//! standard error of the pixel's mean light, direct and indirect apart (`variance`, the
+//! default).
 //!
 //! Choices the thesis leaves open, written down:
 //! - **Demodulation** (`demodulate`, not in the thesis; on by default): the direct and indirect
@@ -30,9 +35,14 @@
 //!   (measured on textured scenes: BENCHMARKS.md, "Seed 001").
 //! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
 //!   and cancels in the normalisation, so it is not computed.
-//! - Depth and colour differences are measured as [`crate::config`] says (relative to the
-//!   centre by default; the thesis's units behind `depth_units` and `colour_units`). A depth
-//!   variance is scaled like the depth (divided by the centre's depth squared when relative).
+//! - Depth and colour differences are measured as [`crate::config`] says (the thesis's units
+//!   behind `depth_units` and `colour_units`). A depth variance is scaled like the depth
+//!   (divided by the centre's depth squared when relative).
+//! - **Standard errors** (variance units): from [`Features::light_variance`] where the caller
+//!   knows it (two samples or more), divided by the albedo's luminance squared when
+//!   demodulating; else the sample variance of the luminance over the pixel's 3x3
+//!   neighbourhood (a single sample's: the real-time case of one sample per frame). Each is at
+//!   least `0.01 (1 + L)`, so that a pixel whose samples agree exactly is not a wall to all.
 //! - **Sky and bad pixels.** A pixel whose depth is not finite (the sky) or any of whose inputs
 //!   is not finite (a NaN or infinite sample) is passed through unfiltered and is nobody's
 //!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not

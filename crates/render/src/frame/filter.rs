@@ -4,8 +4,8 @@
 //! ```text
 //! features  G-buffer, lighting (first bounce)   -> feature statistics (running mean and
 //!                                                  variance per pixel over the epoch)
-//! filter    history (direct, indirect light),   -> filtered image (the `final` display mode)
-//!           feature statistics
+//! filter    history (direct, indirect light and  -> filtered image (the `final` display mode)
+//!           their variances), feature statistics
 //! ```
 //!
 //! Choices the thesis leaves open, written down:
