@@ -227,6 +227,9 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     let mut reports = Vec::new();
     let mut records = Vec::new();
     let mut linear = Vec::new();
+    // Flicker: mean absolute difference of consecutive shown frames at the same view.
+    let mut previous: Option<(usize, Vec<u8>)> = None;
+    let mut flicker = Vec::new();
     for index in 0..frames {
         if cancel.load(Ordering::Relaxed) {
             break;
@@ -235,6 +238,12 @@ pub fn run(args: &PlayArgs) -> Result<()> {
         pipeline.set_config(&with_view(&views[view]));
         let mut report = pool.install(|| pipeline.render_frame(&world));
         pool.install(|| pipeline.display(&mut report));
+        if let Some((v, before)) = &previous {
+            if *v == view {
+                flicker.push(mean_abs_difference(before, &pipeline.rgba));
+            }
+        }
+        previous = Some((view, pipeline.rgba.clone()));
         let file = match &args.out {
             Some(dir) => {
                 let name = format!(
@@ -297,6 +306,10 @@ pub fn run(args: &PlayArgs) -> Result<()> {
                 .map_or(String::new(), |d| format!(" (written to {})", d.display()))
         );
     }
+    let flicker = (!flicker.is_empty()).then(|| flicker.iter().sum::<f64>() / flicker.len() as f64);
+    if let Some(f) = flicker {
+        eprintln!("flicker (mean |difference| of consecutive frames at one view, 0-1): {f:.5}");
+    }
     eprintln!(
         "{} frames of {}x{} ({} views), median {:.2} ms per frame ({:.1} fps): {}",
         done,
@@ -324,9 +337,20 @@ pub fn run(args: &PlayArgs) -> Result<()> {
                 "ms_per_frame": summary.ms_per_frame,
                 "mrays_per_s": summary.mrays_per_s,
                 "passes": summary.passes_json(),
+                "flicker": flicker,
                 "out": args.out,
             })
         );
     }
     Ok(())
+}
+
+/// Mean absolute difference of the RGB channels of two RGBA8 images, in 0..1.
+fn mean_abs_difference(a: &[u8], b: &[u8]) -> f64 {
+    let (sum, count) = a
+        .chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .flat_map(|(p, q)| (0..3).map(move |c| p[c].abs_diff(q[c]) as u64))
+        .fold((0u64, 0u64), |(s, n), d| (s + d, n + 1));
+    sum as f64 / (255.0 * count.max(1) as f64)
 }

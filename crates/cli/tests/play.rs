@@ -210,3 +210,42 @@ fn camera_flags_set_a_path_files_first_view_or_are_refused() {
     run("same", s(&conflict), &["--look-from", "0,1,3.5"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The flicker measure: the mean absolute difference of consecutive shown frames at one view.
+/// Frames that stop accumulating after the first are identical (flicker 0); single-sample
+/// frames flicker; the data-driven filter on them flickers less; an orbit (no two frames at
+/// one view) has none to measure.
+#[test]
+fn play_measures_flicker_at_a_still_view() {
+    let flicker = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "play", "--path", "still", "--frames", "6", "--width", "64", "--height", "48",
+            "--quiet", "--json",
+        ];
+        args.extend_from_slice(extra);
+        let o = pathlight(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let last = stdout(&o).lines().last().unwrap().to_owned();
+        serde_json::from_str::<serde_json::Value>(&last).unwrap()["flicker"].clone()
+    };
+    assert_eq!(flicker(&["--max-frames", "1"]).as_f64(), Some(0.0));
+    let noisy = flicker(&["--no-accumulate"]).as_f64().unwrap();
+    assert!(noisy > 0.01, "{noisy}");
+    let filtered = flicker(&[
+        "--no-accumulate",
+        "--filter",
+        "data-driven",
+        "--kernel",
+        "9",
+    ])
+    .as_f64()
+    .unwrap();
+    assert!(filtered < noisy, "{filtered} vs {noisy}");
+    let o = pathlight(&[
+        "play", "--path", "orbit", "--frames", "3", "--width", "16", "--height", "12", "--quiet",
+        "--json",
+    ]);
+    let last = stdout(&o).lines().last().unwrap().to_owned();
+    let v: serde_json::Value = serde_json::from_str(&last).unwrap();
+    assert!(v["flicker"].is_null(), "{v}");
+}
