@@ -161,8 +161,8 @@ pub struct ConfigArgs {
     #[arg(long)]
     pub restir_mis: bool,
 
-    /// Seed 001's reconstruction filter of the accumulated image (`[frame.filter] method`):
-    /// none or data-driven.
+    /// Seed 001's reconstruction filter (`[frame.filter] method`): none, data-driven (of the
+    /// accumulated image) or svgf (spatio-temporal, of each frame's samples).
     #[arg(long, value_name = "METHOD", value_parser = parse_filter)]
     pub filter: Option<Method>,
 

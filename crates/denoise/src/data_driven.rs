@@ -58,7 +58,7 @@ use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, FilterConfig};
 use crate::exp::{exp_neg, Fused, MulAdd, Plain};
-use crate::features::{Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
+use crate::features::{demodulator, luminance, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::FilterError;
 
 /// Centre pixels filtered together: one SIMD register of f32 with AVX2.
@@ -316,17 +316,6 @@ struct Scales {
     variance: [f32; 5],
     relative_depth: bool,
     demodulate: bool,
-}
-
-/// What demodulation divides a pixel's light by: its albedo, each channel at least 0.01 (a
-/// black surface's light is then filtered as it is, near enough).
-fn demodulator(albedo: Vec3) -> Vec3 {
-    albedo.max(Vec3::splat(0.01))
-}
-
-/// Rec. 709 luminance.
-fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 impl Scales {

@@ -78,3 +78,14 @@ impl Features<'_> {
         !self.depth[i].is_finite()
     }
 }
+
+/// Rec. 709 luminance.
+pub(crate) fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// What demodulation divides a pixel's light by: its albedo, each channel at least 0.01 (a
+/// black surface's light is then filtered as it is, near enough).
+pub(crate) fn demodulator(albedo: Vec3) -> Vec3 {
+    albedo.max(Vec3::splat(0.01))
+}

@@ -12,10 +12,12 @@ pub mod config;
 pub mod data_driven;
 mod exp;
 pub mod features;
+pub mod svgf;
 
 pub use config::{ColourUnits, DepthUnits, FilterConfig, Method};
 pub use data_driven::DataDriven;
 pub use features::Features;
+pub use svgf::{Svgf, SvgfFrame};
 
 /// What a filter refuses, naming the parameter or buffer at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -131,3 +131,37 @@ fn the_filtered_image_does_not_depend_on_the_thread_count() {
     assert_eq!(one, image(2));
     assert_eq!(one, image(3));
 }
+
+/// The spatio-temporal filter on single-sample frames of a still camera (no accumulation: each
+/// frame stands alone): its history makes the 16th frame far closer to the reference than the
+/// frame's own sample, and its image does not depend on the thread count.
+#[test]
+fn svgf_brings_single_sample_frames_close_to_the_reference() {
+    let world = cornell();
+    let mut c = config(Method::None);
+    (c.width, c.height) = (128, 96);
+    c.frame.accumulate = false;
+    let mut s = c.clone();
+    s.frame.filter.method = Method::Svgf;
+    let reference = render(
+        &world,
+        &world.camera(&c),
+        &Config {
+            spp: 1024,
+            ..c.clone()
+        },
+    );
+    let reference: Vec<glam::Vec3> = reference.pixels.iter().map(|p| p.mean).collect();
+    let plain = frames(&world, &c, 16);
+    let run = |threads| in_pool(threads, || frames(&world, &s, 16).image());
+    let filtered = run(2);
+    let (before, after) = (
+        relmse(&plain.image(), &reference),
+        relmse(&filtered, &reference),
+    );
+    assert!(
+        after < 0.3 * before,
+        "relMSE {after:.3e} filtered vs {before:.3e}"
+    );
+    assert_eq!(filtered, run(1));
+}

@@ -377,7 +377,11 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         .show_ui(ui, |ui| {
             ui.selectable_value(&mut f.method, Method::None, "none");
             ui.selectable_value(&mut f.method, Method::DataDriven, "data-driven");
+            ui.selectable_value(&mut f.method, Method::Svgf, "svgf (spatio-temporal)");
         });
+    ui.add_enabled_ui(f.method == Method::Svgf, |ui| {
+        ui.add(egui::Slider::new(&mut f.atrous_iterations, 1..=8).text("a-trous iterations"));
+    });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;
         ui.add(egui::Slider::new(&mut radius, 0..=27).text("kernel radius (width 2r+1)"));

@@ -1,5 +1,7 @@
-//! Seed 001's reconstruction filter as the frame's last pass before display
-//! ([`pathlight_denoise`] holds the filters themselves).
+//! Seed 001's reconstruction filters as the frame's last pass before display
+//! ([`pathlight_denoise`] holds the filters themselves): the data-driven filter of the
+//! accumulated image (below), or the spatio-temporal filter (`svgf`) of each frame's own samples
+//! with the G-buffer (its history lives in the filter and survives camera moves).
 //!
 //! ```text
 //! features  G-buffer, lighting (first bounce)   -> feature statistics (running mean and
@@ -28,8 +30,8 @@
 //!   start again from the frame after the move. Switching the filter on mid-epoch starts them
 //!   then (the history is not reset for a post-process).
 
-use glam::Vec3;
-use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method};
+use glam::{Vec2, Vec3};
+use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method, Svgf, SvgfFrame};
 use rayon::prelude::*;
 
 use super::accumulation::PixelStats;
@@ -113,6 +115,10 @@ pub struct Filter {
     /// The filtered image (empty when the filter is off).
     pub image: Vec<Vec3>,
     data_driven: DataDriven,
+    /// The spatio-temporal filter's history, and its inputs.
+    svgf: Svgf,
+    motion: Vec<Vec2>,
+    emitter: Vec<bool>,
 }
 
 impl Filter {
@@ -143,7 +149,80 @@ impl Filter {
     }
 
     /// Filters the history's light with the gathered features into [`image`](Self::image).
+    /// Runs the configured filter into [`image`](Self::image): the data-driven filter on the
+    /// history with the gathered features, or the spatio-temporal filter on this frame's
+    /// samples (`lighting`, the history where a pixel took none) with the G-buffer.
     pub fn run(
+        &mut self,
+        config: &FilterConfig,
+        history: &[PixelStats],
+        gbuffer: &GBuffer,
+        lighting: &[LightSample],
+    ) -> Result<(), FilterError> {
+        let (width, height) = (gbuffer.width as usize, gbuffer.height as usize);
+        match config.method {
+            Method::DataDriven => self.run_data_driven(config, history, width, height),
+            Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
+            Method::None => Ok(()),
+        }
+    }
+
+    fn run_svgf(
+        &mut self,
+        config: &FilterConfig,
+        history: &[PixelStats],
+        gbuffer: &GBuffer,
+        lighting: &[LightSample],
+    ) -> Result<(), FilterError> {
+        let n = history.len();
+        self.resize(n);
+        self.motion.resize(n, Vec2::ZERO);
+        self.emitter.resize(n, false);
+        (
+            &mut self.direct,
+            &mut self.indirect,
+            &mut self.normal,
+            &mut self.albedo,
+            &mut self.depth,
+            &mut self.motion,
+        )
+            .into_par_iter()
+            .zip(self.emitter.par_iter_mut())
+            .zip(
+                gbuffer
+                    .pixels
+                    .par_iter()
+                    .zip(lighting.par_iter().zip(history.par_iter())),
+            )
+            .for_each(
+                |(((d, i, normal, albedo, depth, motion), emitter), (g, (l, h)))| {
+                    // A pixel the frame did not trace (adaptive sampling) shows its history.
+                    let s = if l.stats.n > 0 { &l.stats } else { h };
+                    *d = s.direct.mean;
+                    *i = s.indirect.mean;
+                    *normal = g.normal;
+                    *albedo = g.albedo;
+                    *depth = g.depth;
+                    *motion = g.motion;
+                    *emitter = g.emitter;
+                },
+            );
+        let frame = SvgfFrame {
+            width: gbuffer.width as usize,
+            height: gbuffer.height as usize,
+            direct: &self.direct,
+            indirect: &self.indirect,
+            albedo: &self.albedo,
+            normal: &self.normal,
+            depth: &self.depth,
+            motion: &self.motion,
+            emitter: &self.emitter,
+        };
+        self.svgf
+            .filter(&frame, config.atrous_iterations, &mut self.image)
+    }
+
+    fn run_data_driven(
         &mut self,
         config: &FilterConfig,
         history: &[PixelStats],
@@ -151,17 +230,8 @@ impl Filter {
         height: usize,
     ) -> Result<(), FilterError> {
         let n = history.len();
-        for v in [
-            &mut self.direct,
-            &mut self.indirect,
-            &mut self.normal,
-            &mut self.albedo,
-            &mut self.texture2,
-            &mut self.image,
-        ] {
-            v.resize(n, Vec3::ZERO);
-        }
-        self.depth.resize(n, 0.0);
+        self.resize(n);
+        self.texture2.resize(n, Vec3::ZERO);
         self.variance.resize(n, [0.0; 5]);
         self.light_variance.resize(n, [0.0; 2]);
         self.stats.resize(n, FeatureStats::default());
@@ -213,15 +283,26 @@ impl Filter {
             variance: &self.variance,
             light_variance: &self.light_variance,
         };
-        match config.method {
-            Method::DataDriven => self.data_driven.filter(&features, config, &mut self.image),
-            // Refused by `FilterConfig::validate`.
-            Method::None | Method::Svgf => Ok(()),
+        self.data_driven.filter(&features, config, &mut self.image)
+    }
+
+    /// Sizes the buffers both filters read and the output for `n` pixels.
+    fn resize(&mut self, n: usize) {
+        for v in [
+            &mut self.direct,
+            &mut self.indirect,
+            &mut self.normal,
+            &mut self.albedo,
+            &mut self.image,
+        ] {
+            v.resize(n, Vec3::ZERO);
         }
+        self.depth.resize(n, 0.0);
     }
 
     /// Forgets the output (the filter was switched off).
     pub fn clear(&mut self) {
+        self.svgf.reset();
         self.image.clear();
         self.variance.clear();
         self.epoch = None;

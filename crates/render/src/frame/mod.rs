@@ -576,16 +576,20 @@ impl Pipeline {
         let method = self.config.frame.filter.method;
         if method != pathlight_denoise::Method::None {
             let t = Instant::now();
-            if traced {
+            let svgf = method == pathlight_denoise::Method::Svgf;
+            if traced && !svgf {
                 self.filter
                     .gather(self.epoch, &self.gbuffer, &self.lighting);
             }
-            let (w, h) = (self.config.width as usize, self.config.height as usize);
-            if self
-                .filter
-                .run(&self.config.frame.filter, &self.history, w, h)
-                .is_err()
-            {
+            let run = (traced || !svgf).then(|| {
+                self.filter.run(
+                    &self.config.frame.filter,
+                    &self.history,
+                    &self.gbuffer,
+                    &self.lighting,
+                )
+            });
+            if let Some(Err(_)) = run {
                 // Not reached: the configuration was validated and the buffers are the
                 // frame's. Show the unfiltered image rather than a stale one.
                 self.filter.clear();

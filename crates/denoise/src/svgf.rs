@@ -1,0 +1,421 @@
+//! A spatio-temporal variance-guided filter in the manner of SVGF (Schied et al., "Spatiotemporal
+//! Variance-Guided Filtering", HPG 2017), beyond the thesis, which has no temporal part: the
+//! one-sample-per-pixel answer while the camera moves.
+//!
+//! ```text
+//! temporal  this frame's light (demodulated by    -> integrated light, moments, history
+//!           the albedo), motion, depth, normal;      length (reverse reprojection through
+//!           last frame's integrated light            the motion vectors, 2x2 bilinear taps
+//!                                                    each kept by depth and normal tests)
+//! variance  moments, history length                -> luminance variance (temporal; a 7x7
+//!                                                    spatial estimate below 4 frames)
+//! a-trous   light, variance, depth, normal         -> filtered light (`iterations` 5x5
+//!                                                    B3-spline passes with holes of 1, 2, 4..;
+//!                                                    the first one's output is the next
+//!                                                    frame's history, as in the paper)
+//! remodulate filtered light, albedo                -> image
+//! ```
+//!
+//! Direct and indirect light are integrated and filtered apart (two signals, each with its
+//! luminance moments). Choices the paper leaves open or that differ, written down:
+//! - Edge-stopping: luminance `exp(-|l_p - l_q| / (sigma_l sqrt(g(var_p)) + eps))` with g a 3x3
+//!   Gaussian of the variance, sigma_l 4; depth `exp(-|z_p - z_q| / (sigma_z |grad z_p| |p - q|
+//!   + eps))` with the depth gradient from central differences, sigma_z 1; normal
+//!   `max(0, n_p . n_q)^128` (the paper's values).
+//! - Reprojection tests: a previous pixel is kept when its depth is within 10% of this pixel's
+//!   and their normals' cosine is at least 0.9 (the paper compares depth with its gradient and
+//!   mesh ids; there are no mesh ids here).
+//! - Blending: `alpha = max(1 / n, 0.2)` for the light and the moments, n the history length
+//!   (capped at 32), as the paper.
+//! - The sky and light sources (`emitter`) pass through with this frame's light and are not
+//!   filtered with their neighbours.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use crate::exp::{exp_neg, Plain};
+use crate::features::{demodulator, luminance};
+use crate::FilterError;
+
+/// One frame's inputs, per pixel in row-major order.
+#[derive(Debug, Clone, Copy)]
+pub struct SvgfFrame<'a> {
+    pub width: usize,
+    pub height: usize,
+    /// This frame's direct and indirect light (the frame's own samples, not accumulated).
+    pub direct: &'a [Vec3],
+    pub indirect: &'a [Vec3],
+    pub albedo: &'a [Vec3],
+    pub normal: &'a [Vec3],
+    /// Depth along the view axis; not finite on the sky.
+    pub depth: &'a [f32],
+    /// Where the pixel's surface was on the previous frame minus where it is, in pixels.
+    pub motion: &'a [Vec2],
+    /// The pixel shows a light source.
+    pub emitter: &'a [bool],
+}
+
+/// The filter's history and scratch buffers (kept across frames).
+#[derive(Default)]
+pub struct Svgf {
+    width: usize,
+    height: usize,
+    /// Last frame's integrated (after the first a-trous pass) demodulated light.
+    history: Vec<[Vec3; 2]>,
+    /// Last frame's moments (first and second of luminance, direct and indirect).
+    moments: Vec<[f32; 4]>,
+    length: Vec<f32>,
+    depth: Vec<f32>,
+    normal: Vec<Vec3>,
+    // Scratch of this frame.
+    light: Vec<[Vec3; 2]>,
+    variance: Vec<[f32; 2]>,
+    next_light: Vec<[Vec3; 2]>,
+    next_variance: Vec<[f32; 2]>,
+    new_moments: Vec<[f32; 4]>,
+    new_length: Vec<f32>,
+    gradient: Vec<f32>,
+    /// The luminance of `light` (per a-trous pass).
+    luminance: Vec<[f32; 2]>,
+}
+
+const SIGMA_L: f32 = 4.0;
+const SIGMA_Z: f32 = 1.0;
+/// The normal test's exponent, 128 = 2^7 (seven squarings).
+const SIGMA_N_SQUARINGS: u32 = 7;
+const MIN_ALPHA: f32 = 0.2;
+const MAX_LENGTH: f32 = 32.0;
+const DEPTH_TOLERANCE: f32 = 0.1;
+const NORMAL_COSINE: f32 = 0.9;
+
+impl Svgf {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets the history (a cut: the next frame starts afresh).
+    pub fn reset(&mut self) {
+        self.length.clear();
+    }
+
+    /// Filters `frame` with `iterations` a-trous passes into `out`, using and updating the
+    /// history.
+    pub fn filter(
+        &mut self,
+        f: &SvgfFrame,
+        iterations: u32,
+        out: &mut [Vec3],
+    ) -> Result<(), FilterError> {
+        let n = f.width * f.height;
+        for (name, len) in [
+            ("direct", f.direct.len()),
+            ("indirect", f.indirect.len()),
+            ("albedo", f.albedo.len()),
+            ("normal", f.normal.len()),
+            ("depth", f.depth.len()),
+            ("motion", f.motion.len()),
+            ("emitter", f.emitter.len()),
+            ("output", out.len()),
+        ] {
+            if len != n {
+                return Err(FilterError::Size {
+                    name,
+                    len,
+                    width: f.width,
+                    height: f.height,
+                });
+            }
+        }
+        if (self.width, self.height) != (f.width, f.height) || self.length.len() != n {
+            self.width = f.width;
+            self.height = f.height;
+            self.history = vec![[Vec3::ZERO; 2]; n];
+            self.moments = vec![[0.0; 4]; n];
+            self.length = vec![0.0; n];
+            self.depth = vec![f32::INFINITY; n];
+            self.normal = vec![Vec3::ZERO; n];
+        }
+        self.temporal(f);
+        self.spatial_variance(f);
+        self.depth_gradient(f);
+        for i in 0..iterations {
+            self.atrous(f, 1 << i);
+            std::mem::swap(&mut self.light, &mut self.next_light);
+            std::mem::swap(&mut self.variance, &mut self.next_variance);
+            if i == 0 {
+                self.history.clone_from(&self.light);
+            }
+        }
+        if iterations == 0 {
+            self.history.clone_from(&self.light);
+        }
+        std::mem::swap(&mut self.moments, &mut self.new_moments);
+        std::mem::swap(&mut self.length, &mut self.new_length);
+        self.depth.clear();
+        self.depth.extend_from_slice(f.depth);
+        self.normal.clear();
+        self.normal.extend_from_slice(f.normal);
+        out.par_iter_mut().enumerate().for_each(|(i, o)| {
+            *o = if passes_through(f, i) {
+                f.direct[i] + f.indirect[i]
+            } else {
+                let [d, n] = self.light[i];
+                (d + n) * demodulator(f.albedo[i])
+            };
+        });
+        Ok(())
+    }
+
+    /// Temporal accumulation: this frame's demodulated light blended with last frame's history
+    /// at the reprojected position.
+    fn temporal(&mut self, f: &SvgfFrame) {
+        let n = f.width * f.height;
+        self.light.resize(n, [Vec3::ZERO; 2]);
+        self.new_moments.resize(n, [0.0; 4]);
+        self.new_length.resize(n, 0.0);
+        let (w, h) = (f.width, f.height);
+        let (history, moments, length, depth, normal) = (
+            &self.history,
+            &self.moments,
+            &self.length,
+            &self.depth,
+            &self.normal,
+        );
+        (&mut self.light, &mut self.new_moments, &mut self.new_length)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(i, (light, m, len))| {
+                let a = demodulator(f.albedo[i]);
+                let current = [f.direct[i] / a, f.indirect[i] / a];
+                let lum = [luminance(current[0]), luminance(current[1])];
+                let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
+                let finite = current.iter().all(|c| c.is_finite());
+                if passes_through(f, i) || !finite {
+                    *light = if finite { current } else { [Vec3::ZERO; 2] };
+                    *m = now;
+                    *len = 0.0;
+                    return;
+                }
+                // Reverse reprojection: bilinear taps of the previous frame around p + motion.
+                let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                let prev = Vec2::new(x, y) + f.motion[i] - Vec2::splat(0.5);
+                let (x0, y0) = (prev.x.floor(), prev.y.floor());
+                let (fx, fy) = (prev.x - x0, prev.y - y0);
+                let mut sum_w = 0.0;
+                let mut old = [Vec3::ZERO; 2];
+                let mut old_m = [0.0f32; 4];
+                let mut old_len = 0.0;
+                for (dx, dy, bw) in [
+                    (0, 0, (1.0 - fx) * (1.0 - fy)),
+                    (1, 0, fx * (1.0 - fy)),
+                    (0, 1, (1.0 - fx) * fy),
+                    (1, 1, fx * fy),
+                ] {
+                    let (qx, qy) = (x0 as i64 + dx, y0 as i64 + dy);
+                    if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 || bw <= 0.0 {
+                        continue;
+                    }
+                    let q = qy as usize * w + qx as usize;
+                    if length[q] <= 0.0
+                        || !depth[q].is_finite()
+                        || (depth[q] - f.depth[i]).abs() > DEPTH_TOLERANCE * f.depth[i]
+                        || normal[q].dot(f.normal[i]) < NORMAL_COSINE
+                    {
+                        continue;
+                    }
+                    sum_w += bw;
+                    old[0] += history[q][0] * bw;
+                    old[1] += history[q][1] * bw;
+                    for k in 0..4 {
+                        old_m[k] += moments[q][k] * bw;
+                    }
+                    old_len += length[q] * bw;
+                }
+                if sum_w < 1e-3 {
+                    *light = current;
+                    *m = now;
+                    *len = 1.0;
+                    return;
+                }
+                let inv = 1.0 / sum_w;
+                let n_new = (old_len * inv + 1.0).min(MAX_LENGTH);
+                let alpha = (1.0 / n_new).max(MIN_ALPHA);
+                *light = [
+                    old[0] * inv * (1.0 - alpha) + current[0] * alpha,
+                    old[1] * inv * (1.0 - alpha) + current[1] * alpha,
+                ];
+                for k in 0..4 {
+                    m[k] = old_m[k] * inv * (1.0 - alpha) + now[k] * alpha;
+                }
+                *len = n_new;
+            });
+    }
+
+    /// The luminance variance of each signal: from the temporal moments after 4 frames of
+    /// history, else from the moments of the 7x7 neighbourhood (weighted by depth and normal).
+    fn spatial_variance(&mut self, f: &SvgfFrame) {
+        let n = f.width * f.height;
+        self.variance.resize(n, [0.0; 2]);
+        let (w, h) = (f.width as i64, f.height as i64);
+        let (moments, length) = (&self.new_moments, &self.new_length);
+        self.variance.par_iter_mut().enumerate().for_each(|(i, v)| {
+            let m = moments[i];
+            if length[i] >= 4.0 || passes_through(f, i) {
+                *v = [(m[1] - m[0] * m[0]).max(0.0), (m[3] - m[2] * m[2]).max(0.0)];
+                return;
+            }
+            let (x, y) = ((i as i64) % w, (i as i64) / w);
+            let mut sum_w = 0.0;
+            let mut acc = [0.0f32; 4];
+            for qy in (y - 3).max(0)..(y + 4).min(h) {
+                for qx in (x - 3).max(0)..(x + 4).min(w) {
+                    let q = (qy * w + qx) as usize;
+                    if passes_through(f, q) {
+                        continue;
+                    }
+                    let ez = -(f.depth[q] - f.depth[i]).abs() / (f.depth[i] * 0.05 + 1e-6);
+                    let wn = normal_weight(f.normal[q].dot(f.normal[i]));
+                    if wn <= 0.0 || ez < -30.0 {
+                        continue;
+                    }
+                    let wq = ez.exp() * wn;
+                    sum_w += wq;
+                    for k in 0..4 {
+                        acc[k] += moments[q][k] * wq;
+                    }
+                }
+            }
+            let a = acc.map(|x| x / sum_w.max(1e-12));
+            // Few frames: the spatial estimate, raised as the paper does.
+            let boost = 4.0 / (length[i] + 1.0).min(4.0);
+            *v = [
+                (a[1] - a[0] * a[0]).max(0.0) * boost,
+                (a[3] - a[2] * a[2]).max(0.0) * boost,
+            ];
+        });
+    }
+
+    /// |grad z| per pixel from central differences (for the depth test).
+    fn depth_gradient(&mut self, f: &SvgfFrame) {
+        let (w, h) = (f.width, f.height);
+        self.gradient.resize(w * h, 0.0);
+        self.gradient.par_iter_mut().enumerate().for_each(|(i, g)| {
+            let (x, y) = (i % w, i / w);
+            let d = |x: usize, y: usize| f.depth[y * w + x];
+            let dx = (d((x + 1).min(w - 1), y) - d(x.saturating_sub(1), y)) * 0.5;
+            let dy = (d(x, (y + 1).min(h - 1)) - d(x, y.saturating_sub(1))) * 0.5;
+            let gz = dx.abs().max(dy.abs());
+            *g = if gz.is_finite() { gz } else { 0.0 };
+        });
+    }
+
+    /// One a-trous pass with holes of `step` pixels, into `next_light` and `next_variance`.
+    fn atrous(&mut self, f: &SvgfFrame, step: i64) {
+        const H: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+        let n = f.width * f.height;
+        self.next_light.resize(n, [Vec3::ZERO; 2]);
+        self.next_variance.resize(n, [0.0; 2]);
+        let (w, h) = (f.width as i64, f.height as i64);
+        self.luminance.resize(n, [0.0; 2]);
+        let light = &self.light;
+        self.luminance
+            .par_iter_mut()
+            .zip(light.par_iter())
+            .for_each(|(l, c)| *l = [luminance(c[0]), luminance(c[1])]);
+        let (variance, gradient, lum) = (&self.variance, &self.gradient, &self.luminance);
+        // The variance's 3x3 Gaussian at a pixel.
+        let blurred = |x: i64, y: i64| -> [f32; 2] {
+            let mut acc = [0.0f32; 2];
+            let mut sum = 0.0;
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let (qx, qy) = (x + dx, y + dy);
+                    if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                        continue;
+                    }
+                    let k = [0.25, 0.125][(dx.abs() + dy.abs()).min(1) as usize]
+                        * if dx != 0 && dy != 0 { 0.5 } else { 1.0 };
+                    let v = variance[(qy * w + qx) as usize];
+                    acc[0] += v[0] * k;
+                    acc[1] += v[1] * k;
+                    sum += k;
+                }
+            }
+            acc.map(|a| a / sum)
+        };
+        (&mut self.next_light, &mut self.next_variance)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(i, (out_l, out_v))| {
+                if passes_through(f, i) {
+                    *out_l = light[i];
+                    *out_v = variance[i];
+                    return;
+                }
+                let (x, y) = ((i as i64) % w, (i as i64) / w);
+                let g = blurred(x, y);
+                let lum_p = lum[i];
+                let inv_sigma = g.map(|v| 1.0 / (SIGMA_L * v.sqrt() + 1e-4));
+                let mut sum_w = [0.0f32; 2];
+                let mut acc = [Vec3::ZERO; 2];
+                let mut acc_v = [0.0f32; 2];
+                for ky in -2..=2i64 {
+                    for kx in -2..=2i64 {
+                        let (qx, qy) = (x + kx * step, y + ky * step);
+                        if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                            continue;
+                        }
+                        let q = (qy * w + qx) as usize;
+                        if passes_through(f, q) {
+                            continue;
+                        }
+                        let kernel = H[kx.unsigned_abs() as usize] * H[ky.unsigned_abs() as usize];
+                        let distance = ((kx * kx + ky * ky) as f32).sqrt() * step as f32;
+                        let wz = -(f.depth[q] - f.depth[i]).abs()
+                            / (SIGMA_Z * gradient[i] * distance + 1e-4 * f.depth[i]);
+                        let wn = normal_weight(f.normal[q].dot(f.normal[i]));
+                        for s in 0..2 {
+                            let wl = -(lum[q][s] - lum_p[s]).abs() * inv_sigma[s];
+                            let e = wz + wl;
+                            let wq = if q == i {
+                                kernel
+                            } else if wn > 0.0 && e > -30.0 {
+                                kernel * wn * exp_neg::<Plain>(e)
+                            } else {
+                                // Below e^-30 of the centre's weight: nothing, and no
+                                // subnormal arithmetic (which is slow).
+                                continue;
+                            };
+                            sum_w[s] += wq;
+                            acc[s] += light[q][s] * wq;
+                            acc_v[s] += variance[q][s] * wq * wq;
+                        }
+                    }
+                }
+                for s in 0..2 {
+                    out_l[s] = acc[s] / sum_w[s];
+                    out_v[s] = acc_v[s] / (sum_w[s] * sum_w[s]);
+                }
+            });
+    }
+}
+
+/// The sky and light sources: passed through, nobody's neighbour.
+fn passes_through(f: &SvgfFrame, i: usize) -> bool {
+    !f.depth[i].is_finite() || f.emitter[i]
+}
+
+/// `max(0, cos)^128` by repeated squaring (`powi` is a library call); 0 below a cosine of 0.6,
+/// where it is under 1e-28 (and squaring further would reach subnormal numbers, which are slow).
+#[inline(always)]
+fn normal_weight(cos: f32) -> f32 {
+    // (A NaN cosine gives 0 too.)
+    if cos.is_nan() || cos < 0.6 {
+        return 0.0;
+    }
+    let mut w = cos;
+    for _ in 0..SIGMA_N_SQUARINGS {
+        w *= w;
+    }
+    w
+}

@@ -1,0 +1,262 @@
+//! The spatio-temporal filter on synthetic frames: a constant image stays constant; on a still
+//! wall with fresh noise every frame its output settles (flicker at least 10x lower than the
+//! input's) around the right mean; a normal edge is not blurred across; history is dropped where
+//! the surface behind a pixel changed (no ghosting); the sky passes through; the thread count
+//! changes nothing.
+
+use glam::{Vec2, Vec3};
+use pathlight_denoise::{Svgf, SvgfFrame};
+
+#[derive(Clone)]
+struct Frame {
+    w: usize,
+    h: usize,
+    direct: Vec<Vec3>,
+    indirect: Vec<Vec3>,
+    albedo: Vec<Vec3>,
+    normal: Vec<Vec3>,
+    depth: Vec<f32>,
+    motion: Vec<Vec2>,
+    emitter: Vec<bool>,
+}
+
+impl Frame {
+    fn flat(w: usize, h: usize, light: f32) -> Self {
+        let n = w * h;
+        Self {
+            w,
+            h,
+            direct: vec![Vec3::splat(light); n],
+            indirect: vec![Vec3::splat(0.1 * light); n],
+            albedo: vec![Vec3::splat(0.5); n],
+            normal: vec![Vec3::Z; n],
+            depth: vec![2.0; n],
+            motion: vec![Vec2::ZERO; n],
+            emitter: vec![false; n],
+        }
+    }
+
+    fn run(&self, svgf: &mut Svgf) -> Vec<Vec3> {
+        let mut out = vec![Vec3::ZERO; self.w * self.h];
+        svgf.filter(
+            &SvgfFrame {
+                width: self.w,
+                height: self.h,
+                direct: &self.direct,
+                indirect: &self.indirect,
+                albedo: &self.albedo,
+                normal: &self.normal,
+                depth: &self.depth,
+                motion: &self.motion,
+                emitter: &self.emitter,
+            },
+            5,
+            &mut out,
+        )
+        .unwrap();
+        out
+    }
+}
+
+/// xorshift64* with uniform deviates in [-1, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let u = (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 / (1u64 << 24) as f32;
+        2.0 * u - 1.0
+    }
+}
+
+/// A flat wall lit at 0.5 (direct) with uniform noise of +-0.4 per frame, frame `k`.
+fn noisy(k: u64) -> Frame {
+    let mut f = Frame::flat(48, 32, 0.5);
+    let mut rng = Rng(0x9e37_79b9 + k);
+    for d in &mut f.direct {
+        *d = Vec3::splat(0.5 + 0.4 * rng.next());
+    }
+    f
+}
+
+fn mean_abs_diff(a: &[Vec3], b: &[Vec3]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).abs().element_sum() / 3.0)
+        .sum::<f32>()
+        / a.len() as f32
+}
+
+#[test]
+fn a_constant_image_stays_constant() {
+    let f = Frame::flat(40, 24, 0.3);
+    let mut svgf = Svgf::new();
+    for _ in 0..6 {
+        for o in f.run(&mut svgf) {
+            assert!((o - Vec3::splat(0.33)).abs().max_element() < 1e-5, "{o}");
+        }
+    }
+}
+
+#[test]
+fn a_still_wall_settles_with_fresh_noise_every_frame() {
+    let mut svgf = Svgf::new();
+    let frames: Vec<Frame> = (0..40).map(noisy).collect();
+    let outputs: Vec<Vec<Vec3>> = frames.iter().map(|f| f.run(&mut svgf)).collect();
+    // Flicker over the last 10 frames, against the input's.
+    let flicker = |v: &[Vec<Vec3>]| {
+        (30..40)
+            .map(|k| mean_abs_diff(&v[k], &v[k - 1]))
+            .sum::<f32>()
+            / 10.0
+    };
+    let inputs: Vec<Vec<Vec3>> = frames
+        .iter()
+        .map(|f| {
+            f.direct
+                .iter()
+                .zip(&f.indirect)
+                .map(|(d, i)| *d + *i)
+                .collect()
+        })
+        .collect();
+    let (input, output) = (flicker(&inputs), flicker(&outputs));
+    assert!(output * 10.0 < input, "flicker {output} vs input {input}");
+    // Around the right mean (0.5 + 0.05).
+    let mean = outputs[39].iter().map(|o| o.x).sum::<f32>() / outputs[39].len() as f32;
+    assert!((mean - 0.55).abs() < 0.01, "{mean}");
+}
+
+#[test]
+fn a_normal_edge_is_not_blurred_across() {
+    let mut f = Frame::flat(40, 20, 0.2);
+    for y in 0..20 {
+        for x in 20..40 {
+            f.normal[y * 40 + x] = Vec3::X;
+            f.direct[y * 40 + x] = Vec3::splat(0.9);
+            f.indirect[y * 40 + x] = Vec3::splat(0.09);
+        }
+    }
+    let mut svgf = Svgf::new();
+    for _ in 0..3 {
+        let out = f.run(&mut svgf);
+        assert!(
+            (out[10 * 40 + 19].x - 0.22).abs() < 1e-3,
+            "{}",
+            out[10 * 40 + 19]
+        );
+        assert!(
+            (out[10 * 40 + 20].x - 0.99).abs() < 1e-3,
+            "{}",
+            out[10 * 40 + 20]
+        );
+    }
+}
+
+#[test]
+fn history_is_dropped_where_the_surface_changed() {
+    // Ten frames of a wall at depth 2 lit at 0.2, then the left half is a new surface at depth
+    // 1 lit at 0.8: its pixels must show 0.8 at once (no ghost of the old wall), the right
+    // half keeps its history.
+    let mut svgf = Svgf::new();
+    let old = Frame::flat(40, 20, 0.2);
+    for _ in 0..10 {
+        old.run(&mut svgf);
+    }
+    let mut new = old.clone();
+    for y in 0..20 {
+        for x in 0..20 {
+            let i = y * 40 + x;
+            new.depth[i] = 1.0;
+            new.direct[i] = Vec3::splat(0.8);
+            new.indirect[i] = Vec3::splat(0.08);
+        }
+    }
+    let out = new.run(&mut svgf);
+    assert!(
+        (out[10 * 40 + 5].x - 0.88).abs() < 1e-3,
+        "{}",
+        out[10 * 40 + 5]
+    );
+    assert!(
+        (out[10 * 40 + 35].x - 0.22).abs() < 1e-3,
+        "{}",
+        out[10 * 40 + 35]
+    );
+}
+
+#[test]
+fn motion_vectors_carry_the_history() {
+    // A step in the light (a shadow edge on one wall) that moves right by 2 pixels a frame,
+    // with motion vectors saying so: the output follows the step without trailing it.
+    let mut svgf = Svgf::new();
+    let frame = |k: usize| {
+        let mut f = Frame::flat(64, 16, 0.2);
+        for y in 0..16 {
+            for x in 0..64 {
+                let i = y * 64 + x;
+                if x >= 20 + 2 * k {
+                    f.direct[i] = Vec3::splat(0.8);
+                    f.indirect[i] = Vec3::splat(0.08);
+                }
+                f.motion[i] = if k > 0 {
+                    Vec2::new(-2.0, 0.0)
+                } else {
+                    Vec2::ZERO
+                };
+            }
+        }
+        f
+    };
+    let mut out = Vec::new();
+    for k in 0..8 {
+        out = frame(k).run(&mut svgf);
+    }
+    // At frame 7 the step is at x = 34.
+    let row = |x: usize| out[8 * 64 + x].x;
+    assert!((row(30) - 0.22).abs() < 0.02, "{}", row(30));
+    assert!((row(38) - 0.88).abs() < 0.02, "{}", row(38));
+}
+
+#[test]
+fn the_sky_passes_through_and_the_thread_count_changes_nothing() {
+    let mut f = noisy(1);
+    for y in 0..32 {
+        for x in 0..8 {
+            let i = y * 48 + x;
+            f.depth[i] = f32::INFINITY;
+            f.direct[i] = Vec3::new(3.0, 2.0, 1.0);
+        }
+    }
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let mut svgf = Svgf::new();
+                let mut out = Vec::new();
+                for k in 0..3 {
+                    let mut g = noisy(k);
+                    g.depth.clone_from(&f.depth);
+                    for y in 0..32 {
+                        for x in 0..8 {
+                            g.direct[y * 48 + x] = f.direct[y * 48 + x];
+                        }
+                    }
+                    out = g.run(&mut svgf);
+                }
+                out
+            })
+    };
+    let one = run(1);
+    for y in 0..32 {
+        assert_eq!(
+            one[y * 48 + 3],
+            Vec3::new(3.0, 2.0, 1.0) + Vec3::splat(0.05)
+        );
+    }
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(3));
+}
