@@ -176,6 +176,8 @@ impl Filter {
     ) -> Result<(), FilterError> {
         let n = history.len();
         self.resize(n);
+        // The feature variances are the data-driven filter's (their display modes go dark).
+        self.variance.clear();
         self.motion.resize(n, Vec2::ZERO);
         self.emitter.resize(n, false);
         (
