@@ -6,21 +6,11 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::Vec3;
+use pathlight_core::rng::Rng;
 use pathlight_denoise::{DataDriven, Features, FilterConfig, Method};
 
-/// SplitMix64.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn vec3(&mut self, scale: f32) -> Vec3 {
-        Vec3::new(self.next(), self.next(), self.next()) * scale
-    }
+fn vec3(rng: &mut Rng, scale: f32) -> Vec3 {
+    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale
 }
 
 fn bench(c: &mut Criterion) {
@@ -34,7 +24,7 @@ fn bench(c: &mut Criterion) {
 }
 
 fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
-    let mut rng = Rng(1);
+    let mut rng = Rng::new(1, 0);
     let n = w * h;
     let (mut depth, mut normal, mut albedo) = (vec![0.0; n], vec![Vec3::Z; n], vec![Vec3::ZERO; n]);
     for y in 0..h {
@@ -54,10 +44,10 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
             };
         }
     }
-    let direct: Vec<Vec3> = (0..n).map(|_| rng.vec3(1.0)).collect();
-    let indirect: Vec<Vec3> = (0..n).map(|_| rng.vec3(0.3)).collect();
+    let direct: Vec<Vec3> = (0..n).map(|_| vec3(&mut rng, 1.0)).collect();
+    let indirect: Vec<Vec3> = (0..n).map(|_| vec3(&mut rng, 0.3)).collect();
     let variance: Vec<[f32; 5]> = (0..n)
-        .map(|_| [rng.next() * 0.01, rng.next() * 0.1, 0.0, 0.5, 0.0])
+        .map(|_| [rng.next_f32() * 0.01, rng.next_f32() * 0.1, 0.0, 0.5, 0.0])
         .collect();
     let light_variance = vec![[0.01f32, 0.001]; n];
     let features = Features {

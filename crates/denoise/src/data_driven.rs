@@ -54,11 +54,13 @@
 //!   result depends on the inputs alone, not on the thread count.
 
 use glam::Vec3;
+use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, FilterConfig};
 use crate::exp::{exp_neg, Fused, MulAdd, Plain};
-use crate::features::{demodulator, luminance, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
+
+use crate::features::{demodulator, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::FilterError;
 
 /// Centre pixels filtered together: one SIMD register of f32 with AVX2.

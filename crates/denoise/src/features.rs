@@ -71,17 +71,6 @@ impl Features<'_> {
         }
         Ok(())
     }
-
-    /// True for a sky pixel (no surface: the depth is not finite), which the filters pass
-    /// through.
-    pub fn is_sky(&self, i: usize) -> bool {
-        !self.depth[i].is_finite()
-    }
-}
-
-/// Rec. 709 luminance.
-pub(crate) fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// What demodulation divides a pixel's light by: its albedo, each channel at least 0.01 (a

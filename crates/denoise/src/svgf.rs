@@ -31,10 +31,11 @@
 //!   filtered with their neighbours.
 
 use glam::{Vec2, Vec3};
+use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::exp::{exp_neg, Plain};
-use crate::features::{demodulator, luminance};
+use crate::features::demodulator;
 use crate::FilterError;
 
 /// One frame's inputs, per pixel in row-major order.

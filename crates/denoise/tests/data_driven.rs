@@ -77,15 +77,16 @@ fn data_driven() -> FilterConfig {
     }
 }
 
-/// A small deterministic generator (xorshift64*) with normal deviates.
-struct Rng(u64);
+/// pathlight's generator, with normal deviates (Box-Muller).
+struct Rng(pathlight_core::rng::Rng);
 
 impl Rng {
+    fn new(seed: u64) -> Self {
+        Self(pathlight_core::rng::Rng::new(seed, 0))
+    }
+
     fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+        self.0.next_f32() as f64
     }
 
     fn normal(&mut self) -> f64 {
@@ -97,12 +98,21 @@ impl Rng {
         let mut c = || lo + (hi - lo) * self.uniform() as f32;
         Vec3::new(c(), c(), c())
     }
+
+    /// Three normal deviates.
+    fn normal3(&mut self) -> Vec3 {
+        Vec3::new(
+            self.normal() as f32,
+            self.normal() as f32,
+            self.normal() as f32,
+        )
+    }
 }
 
 /// A frame with everything varying: two surfaces (a depth and normal edge), texture
 /// patches, noisy light, feature variances, a sky corner.
 fn busy(width: usize, height: usize, seed: u64) -> Frame {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut f = Frame::flat(width, height, Vec3::ZERO, Vec3::ZERO);
     for y in 0..height {
         for x in 0..width {
@@ -319,22 +329,12 @@ fn noise_on_a_flat_region_falls_by_the_window_size() {
     // wall: the colour tests then weigh every neighbour within 0.1% of 1, so the output is the
     // window's mean and its variance the input's over the window's pixel count.
     let (w, h) = (400, 300);
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
     let (sd, si) = (0.02f64, 0.01f64);
     for p in 0..w * h {
-        f.direct[p] = Vec3::splat(0.5)
-            + Vec3::new(
-                rng.normal() as f32,
-                rng.normal() as f32,
-                rng.normal() as f32,
-            ) * sd as f32;
-        f.indirect[p] = Vec3::splat(0.1)
-            + Vec3::new(
-                rng.normal() as f32,
-                rng.normal() as f32,
-                rng.normal() as f32,
-            ) * si as f32;
+        f.direct[p] = Vec3::splat(0.5) + rng.normal3() * sd as f32;
+        f.indirect[p] = Vec3::splat(0.1) + rng.normal3() * si as f32;
     }
     for (kernel, holes, taps) in [(7, false, 49.0), (21, false, 441.0), (21, true, 121.0)] {
         let out = f.filter(&FilterConfig {
@@ -540,7 +540,7 @@ fn variance_units_follow_the_noise() {
     // smoothed; at 4096 the step (100 standard errors) is kept where relative units blur it.
     let (w, h) = (64, 32);
     let image = |n: f32| {
-        let mut rng = Rng(5);
+        let mut rng = Rng::new(5);
         let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
         let error = 0.2 / n.sqrt();
         for y in 0..h {

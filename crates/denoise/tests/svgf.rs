@@ -5,6 +5,7 @@
 //! changes nothing.
 
 use glam::{Vec2, Vec3};
+use pathlight_core::rng::Rng;
 use pathlight_denoise::{Svgf, SvgfFrame};
 
 #[derive(Clone)]
@@ -58,24 +59,12 @@ impl Frame {
     }
 }
 
-/// xorshift64* with uniform deviates in [-1, 1).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let u = (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 / (1u64 << 24) as f32;
-        2.0 * u - 1.0
-    }
-}
-
 /// A flat wall lit at 0.5 (direct) with uniform noise of +-0.4 per frame, frame `k`.
 fn noisy(k: u64) -> Frame {
     let mut f = Frame::flat(48, 32, 0.5);
-    let mut rng = Rng(0x9e37_79b9 + k);
+    let mut rng = Rng::new(0x9e37_79b9 + k, 0);
     for d in &mut f.direct {
-        *d = Vec3::splat(0.5 + 0.4 * rng.next());
+        *d = Vec3::splat(0.5 + 0.4 * (2.0 * rng.next_f32() - 1.0));
     }
     f
 }

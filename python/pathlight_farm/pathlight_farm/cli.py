@@ -44,47 +44,29 @@ def main(argv=None) -> int:
         p.add_argument("--retries", type=int, default=3, help="retries of a failing range (default 3)")
     args, passthrough = parser.parse_known_args(argv)
     progress = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    # The options both commands share.
+    cluster = dict(
+        chunks=args.chunks,
+        scheduler=args.scheduler,
+        binary=args.binary,
+        worker_binary=args.worker_binary,
+        workers=args.workers,
+        retries=args.retries,
+        progress=progress,
+    )
     if args.command == "eval-references":
         if passthrough:
             parser.error(f"eval-references: unknown arguments {' '.join(passthrough)}")
-        try:
-            eval_references(
-                args.spec,
-                args.cache,
-                chunks=args.chunks,
-                only=args.only,
-                scheduler=args.scheduler,
-                binary=args.binary,
-                worker_binary=args.worker_binary,
-                workers=args.workers,
-                retries=args.retries,
-                progress=progress,
-            )
-        except (RuntimeError, ValueError, OSError, ImportError) as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 1
-        return 0
-    # The scene (if any) and every option this driver does not know go to `pathlight render`.
-    render_args = passthrough
+        job = lambda: eval_references(args.spec, args.cache, only=args.only, **cluster)  # noqa: E731
+    else:
+        # The scene (if any) and every option this driver does not know go to `pathlight render`.
+        job = lambda: render(passthrough, args.spp, out=args.out, aovs=args.aovs, **cluster)  # noqa: E731
     try:
-        render(
-            render_args,
-            args.spp,
-            args.chunks,
-            args.out,
-            scheduler=args.scheduler,
-            binary=args.binary,
-            worker_binary=args.worker_binary,
-            aovs=args.aovs,
-            workers=args.workers,
-            retries=args.retries,
-            progress=progress,
-        )
+        job()
     except (RuntimeError, ValueError, OSError, ImportError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -31,6 +31,7 @@
 //!   then (the history is not reset for a post-process).
 
 use glam::{Vec2, Vec3};
+use pathlight_core::color::luminance;
 use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method, Svgf, SvgfFrame};
 use rayon::prelude::*;
 
@@ -148,7 +149,6 @@ impl Filter {
             });
     }
 
-    /// Filters the history's light with the gathered features into [`image`](Self::image).
     /// Runs the configured filter into [`image`](Self::image): the data-driven filter on the
     /// history with the gathered features, or the spatio-temporal filter on this frame's
     /// samples (`lighting`, the history where a pixel took none) with the G-buffer.
@@ -253,10 +253,9 @@ impl Filter {
             )
             .zip(history.par_iter().zip(self.stats.par_iter()))
             .for_each(|(((d, i, depth, normal, albedo, t2), (v, lv)), (h, s))| {
-                let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
                 *lv = if h.n >= 2 {
                     let k = 1.0 / ((h.n - 1) as f32 * h.n as f32);
-                    [lum(h.direct.m2) * k, lum(h.indirect.m2) * k]
+                    [luminance(h.direct.m2) * k, luminance(h.indirect.m2) * k]
                 } else {
                     [f32::NAN; 2]
                 };
