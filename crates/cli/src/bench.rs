@@ -10,7 +10,7 @@ use pathlight_accel::{Accel, Hit, NativeBvh, Ray, RayKind, RaySets, SceneTriangl
 use rayon::prelude::*;
 use serde_json::json;
 
-use crate::config_args::{check, ConfigArgs};
+use crate::config_args::{check_realtime, ConfigArgs};
 use crate::scene_args::SceneArgs;
 
 #[derive(Debug, Clone, Args)]
@@ -529,7 +529,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
         bail!("--orbit {}: must be finite", args.orbit);
     }
     let config = args.settings.apply(Config::realtime())?;
-    check(&config)?;
+    check_realtime(&config)?;
     let pool = crate::terminal::thread_pool(args.threads)?;
     let setup = Instant::now();
     let path = args.scene.scene.as_deref();

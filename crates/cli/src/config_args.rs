@@ -180,8 +180,9 @@ fn parse_filter(s: &str) -> Result<Method, String> {
         "none" => Ok(Method::None),
         "data-driven" => Ok(Method::DataDriven),
         "svgf" => Ok(Method::Svgf),
+        "rpf" => Ok(Method::Rpf),
         _ => Err(format!(
-            "unknown filter {s:?}; one of none, data-driven, svgf"
+            "unknown filter {s:?}; one of none, data-driven, svgf, rpf (rpf: `render` only)"
         )),
     }
 }
@@ -359,6 +360,18 @@ impl ConfigArgs {
 pub fn check(c: &Config) -> Result<()> {
     if let Err(e) = c.validate() {
         bail!("{} {}: must be {}", e.option(), e.value, e.requirement);
+    }
+    Ok(())
+}
+
+/// [`check`] for the real-time commands (view, play, bench frame), which cannot run the
+/// offline filter.
+pub fn check_realtime(c: &Config) -> Result<()> {
+    check(c)?;
+    if c.frame.filter.method == Method::Rpf {
+        bail!(
+            "--filter rpf: Random Parameter Filtering is offline (every sample filtered apart): run it with `pathlight render --filter rpf` or in an eval configuration"
+        );
     }
     Ok(())
 }

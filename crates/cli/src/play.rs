@@ -15,7 +15,7 @@ use pathlight_render::{Config, World};
 use serde::Serialize;
 
 use crate::bench::Summary;
-use crate::config_args::{check, ConfigArgs};
+use crate::config_args::{check_realtime, ConfigArgs};
 use crate::terminal::{ctrl_c_flag, progress_bar, thread_pool};
 use crate::SceneArgs;
 
@@ -194,7 +194,7 @@ fn with_camera_flags(mut path: CameraPath, flags: &CameraPath) -> Result<CameraP
 
 pub fn run(args: &PlayArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
-    check(&config)?;
+    check_realtime(&config)?;
     let pool = thread_pool(args.threads)?;
     let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
     let world = pool.install(|| World::new(scene, config.light_selection));

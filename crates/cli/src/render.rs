@@ -8,10 +8,12 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use pathlight_render::checkpoint::{self, Header};
-use pathlight_render::output::write_film;
+use pathlight_render::denoise::Method;
+use pathlight_render::output::{write_atomic, Channels};
+use pathlight_render::output::{write_film, write_rgb, Format};
 use pathlight_render::part::{self, PartHeader};
 use pathlight_render::renderer::{pass_targets, render_range_pass};
-use pathlight_render::{Config, Film, World};
+use pathlight_render::{Camera, Config, Film, World};
 
 use crate::config_args::{check, ConfigArgs};
 use crate::memory::peak_rss_bytes;
@@ -111,9 +113,10 @@ impl RenderArgs {
             ..Config::default()
         };
         let mut config = self.settings.apply(base)?;
-        if config.frame.filter.method != pathlight_render::denoise::Method::None {
+        if config.frame.filter.method.in_frame() {
             bail!(
-                "--filter: `render` is the reference path tracer, which filters nothing (the filter runs in view, play, bench frame and eval)"
+                "--filter {}: `render` is the reference path tracer; the real-time filters run in view, play, bench frame and eval (render filters with rpf only)",
+                serde_json::to_value(config.frame.filter.method)?.as_str().unwrap_or("?")
             );
         }
         if config.height == 0 {
@@ -163,6 +166,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     let world = World::new(scene, config.light_selection);
     let setup_ms = start.elapsed().as_secs_f64() * 1e3;
     let camera = world.camera(&config);
+    if config.frame.filter.method == Method::Rpf {
+        return render_rpf(args, &world, &camera, &config, setup_ms);
+    }
     let header = Header {
         config: config.clone(),
         scene: args.scene.identity(&world),
@@ -300,6 +306,81 @@ fn render(args: &RenderArgs) -> Result<()> {
             "setup_ms": setup_ms,
             "render_s": render_s,
             "samples_per_s": samples as f64 / render_s,
+            "peak_rss_bytes": peak,
+        });
+        println!("{json}");
+    }
+    Ok(())
+}
+
+/// `render --filter rpf`: traces every sample into RPF's vectors, filters them, writes the
+/// filtered image (with --aovs and .exr, the unfiltered mean of the same samples as the layer
+/// `unfiltered`). Ctrl-C stops it with nothing written (RPF needs every sample); no
+/// checkpoints.
+fn render_rpf(
+    args: &RenderArgs,
+    world: &World,
+    camera: &Camera,
+    config: &Config,
+    setup_ms: f64,
+) -> Result<()> {
+    if args.samples.is_some() || args.resume {
+        bail!("--filter rpf filters the whole render at once: no --samples or --resume");
+    }
+    if config.spp > pathlight_render::denoise::rpf::MAX_SPP {
+        bail!(
+            "--spp {}: RPF filters at most {} samples per pixel (the paper uses 8)",
+            config.spp,
+            pathlight_render::denoise::rpf::MAX_SPP
+        );
+    }
+    let cancel = ctrl_c_flag();
+    let bar = progress_bar(
+        args.quiet || args.json,
+        1000,
+        "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% RPF {msg} ETA {eta}",
+    );
+    let progress = |f: f32| bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+    let rendered = pathlight_render::rpf::render(world, camera, config, &cancel, &progress)?;
+    bar.finish_and_clear();
+    let Some(r) = rendered else {
+        bail!("stopped: RPF needs every sample and the whole filter; nothing written");
+    };
+    let (w, h) = (config.width, config.height);
+    if args.aovs && Format::from_path(&args.out)? == Format::Exr {
+        let mut ch = Channels::new(w, h);
+        ch.add_rgb("", ["R", "G", "B"], &r.filtered);
+        ch.add_rgb("unfiltered", ["R", "G", "B"], &r.unfiltered);
+        let bytes = ch
+            .encode_exr()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
+        write_atomic(&args.out, &bytes)?;
+    } else {
+        write_rgb(&args.out, w, h, &r.filtered, &config.display)?;
+    }
+    let peak = peak_rss_bytes();
+    eprintln!(
+        "{}: {w}x{h} at {} spp, RPF: tracing {:.2} s, filter {:.2} s, setup {setup_ms:.0} ms, peak memory {}",
+        args.out.display(),
+        config.spp,
+        r.trace_ms / 1e3,
+        r.filter_ms / 1e3,
+        peak.map_or("unknown".to_owned(), |b| format!(
+            "{:.0} MiB",
+            b as f64 / (1 << 20) as f64
+        ))
+    );
+    if args.json {
+        let json = serde_json::json!({
+            "out": args.out,
+            "width": w,
+            "height": h,
+            "spp": config.spp,
+            "seed": config.seed,
+            "threads": rayon::current_num_threads(),
+            "setup_ms": setup_ms,
+            "trace_ms": r.trace_ms,
+            "filter_ms": r.filter_ms,
             "peak_rss_bytes": peak,
         });
         println!("{json}");

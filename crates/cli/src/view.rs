@@ -8,7 +8,7 @@ use clap::Args;
 use pathlight_render::{Config, World};
 use pathlight_viewer::ViewerOptions;
 
-use crate::config_args::{check, parse_size, ConfigArgs};
+use crate::config_args::{check_realtime, parse_size, ConfigArgs};
 use crate::SceneArgs;
 
 #[derive(Debug, Args)]
@@ -54,7 +54,7 @@ pub struct ViewArgs {
 
 pub fn run(args: &ViewArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
-    check(&config)?;
+    check_realtime(&config)?;
     if let Some(t) = args.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)

@@ -2,12 +2,14 @@
 //! noisy light), with all the machine's threads: at 640x360 kernels 1 (the fixed cost: the
 //! planes), 7, 15, 21, 25 and 55, with and without holes; at 320x240 and 1280x720 kernel 21.
 //!
-//! `cargo bench -p pathlight-denoise --bench filter`
+//! SVGF (5 a-trous passes, a still camera) at 640x360 and 1280x720, vectorised and scalar.
+//!
+//! `cargo bench -p pathlight-denoise --bench filter [-- svgf]`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use pathlight_core::rng::Rng;
-use pathlight_denoise::{DataDriven, Features, FilterConfig, Method};
+use pathlight_denoise::{DataDriven, Features, FilterConfig, Method, Svgf, SvgfFrame};
 
 fn vec3(rng: &mut Rng, scale: f32) -> Vec3 {
     Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale
@@ -23,44 +25,71 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
-    let mut rng = Rng::new(1, 0);
-    let n = w * h;
-    let (mut depth, mut normal, mut albedo) = (vec![0.0; n], vec![Vec3::Z; n], vec![Vec3::ZERO; n]);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let right = x > w / 2;
-            depth[i] = if right { 3.0 + 0.01 * y as f32 } else { 1.5 };
-            normal[i] = if right {
-                Vec3::new(0.6, 0.0, 0.8)
-            } else {
-                Vec3::Z
-            };
-            albedo[i] = if (x / 16 + y / 16) % 2 == 0 {
-                Vec3::splat(0.7)
-            } else {
-                Vec3::splat(0.3)
-            };
+/// A synthetic frame: two walls at an angle, texture patches, noisy light.
+struct Synthetic {
+    depth: Vec<f32>,
+    normal: Vec<Vec3>,
+    albedo: Vec<Vec3>,
+    direct: Vec<Vec3>,
+    indirect: Vec<Vec3>,
+    variance: Vec<[f32; 5]>,
+    light_variance: Vec<[f32; 2]>,
+}
+
+impl Synthetic {
+    fn new(w: usize, h: usize) -> Self {
+        let mut rng = Rng::new(1, 0);
+        let n = w * h;
+        let (mut depth, mut normal, mut albedo) =
+            (vec![0.0; n], vec![Vec3::Z; n], vec![Vec3::ZERO; n]);
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let right = x > w / 2;
+                depth[i] = if right { 3.0 + 0.01 * y as f32 } else { 1.5 };
+                normal[i] = if right {
+                    Vec3::new(0.6, 0.0, 0.8)
+                } else {
+                    Vec3::Z
+                };
+                albedo[i] = if (x / 16 + y / 16) % 2 == 0 {
+                    Vec3::splat(0.7)
+                } else {
+                    Vec3::splat(0.3)
+                };
+            }
+        }
+        let direct = (0..n).map(|_| vec3(&mut rng, 1.0)).collect();
+        let indirect = (0..n).map(|_| vec3(&mut rng, 0.3)).collect();
+        let variance = (0..n)
+            .map(|_| [rng.next_f32() * 0.01, rng.next_f32() * 0.1, 0.0, 0.5, 0.0])
+            .collect();
+        Self {
+            depth,
+            normal,
+            albedo,
+            direct,
+            indirect,
+            variance,
+            light_variance: vec![[0.01f32, 0.001]; n],
         }
     }
-    let direct: Vec<Vec3> = (0..n).map(|_| vec3(&mut rng, 1.0)).collect();
-    let indirect: Vec<Vec3> = (0..n).map(|_| vec3(&mut rng, 0.3)).collect();
-    let variance: Vec<[f32; 5]> = (0..n)
-        .map(|_| [rng.next_f32() * 0.01, rng.next_f32() * 0.1, 0.0, 0.5, 0.0])
-        .collect();
-    let light_variance = vec![[0.01f32, 0.001]; n];
+}
+
+fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
+    let s = Synthetic::new(w, h);
+    let n = w * h;
     let features = Features {
         width: w,
         height: h,
-        direct: &direct,
-        indirect: &indirect,
-        depth: &depth,
-        normal: &normal,
-        albedo: &albedo,
-        texture2: &albedo,
-        variance: &variance,
-        light_variance: &light_variance,
+        direct: &s.direct,
+        indirect: &s.indirect,
+        depth: &s.depth,
+        normal: &s.normal,
+        albedo: &s.albedo,
+        texture2: &s.albedo,
+        variance: &s.variance,
+        light_variance: &s.light_variance,
     };
     let mut filter = DataDriven::new();
     let mut out = vec![Vec3::ZERO; n];
@@ -83,5 +112,41 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// SVGF on a still camera (the history at its full length), 5 a-trous passes: the vectorised
+/// passes and the scalar ones.
+fn svgf(c: &mut Criterion) {
+    for (w, h) in [(640, 360), (1280, 720)] {
+        let s = Synthetic::new(w, h);
+        let n = w * h;
+        let (motion, emitter) = (vec![Vec2::ZERO; n], vec![false; n]);
+        let frame = SvgfFrame {
+            width: w,
+            height: h,
+            direct: &s.direct,
+            indirect: &s.indirect,
+            albedo: &s.albedo,
+            normal: &s.normal,
+            depth: &s.depth,
+            motion: &motion,
+            emitter: &emitter,
+        };
+        let mut out = vec![Vec3::ZERO; n];
+        let mut group = c.benchmark_group(format!("svgf {w}x{h}"));
+        group.sample_size(20);
+        for scalar in [false, true] {
+            let mut svgf = Svgf::new();
+            svgf.set_scalar(scalar);
+            for _ in 0..40 {
+                svgf.filter(&frame, 5, &mut out).unwrap();
+            }
+            let name = if scalar { "scalar" } else { "vectorised" };
+            group.bench_function(name, |b| {
+                b.iter(|| svgf.filter(&frame, 5, &mut out).unwrap())
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench, svgf);
 criterion_main!(benches);

@@ -38,6 +38,17 @@ pub enum Method {
     /// A spatio-temporal variance-guided filter in the manner of SVGF ([`crate::svgf`]): it
     /// filters each frame's own samples with its temporal history.
     Svgf,
+    /// Random Parameter Filtering ([`crate::rpf`]), the offline baseline: it filters every
+    /// sample apart, so it runs on the reference path tracer's samples (`pathlight render
+    /// --filter rpf`, or an `eval` configuration), not in the real-time frame.
+    Rpf,
+}
+
+impl Method {
+    /// True for the filters the real-time frame runs.
+    pub fn in_frame(self) -> bool {
+        matches!(self, Self::DataDriven | Self::Svgf)
+    }
 }
 
 /// How depth differences are measured.
@@ -98,6 +109,13 @@ pub struct FilterConfig {
     /// Data-driven: filter the light divided by the albedo (the illumination), then multiply
     /// it back (not in the thesis).
     pub demodulate: bool,
+    /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
+    pub rpf_boxes: Vec<u32>,
+    /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
+    /// paper's 0.002 for outdoor ones).
+    pub rpf_noise: f32,
+    /// RPF: the technical report's outlier step after each pass, the pixel's mean kept.
+    pub rpf_outliers: bool,
 }
 
 impl Default for FilterConfig {
@@ -118,6 +136,9 @@ impl Default for FilterConfig {
             depth_units: DepthUnits::Relative,
             colour_units: ColourUnits::Variance,
             demodulate: true,
+            rpf_boxes: vec![55, 35, 17, 7],
+            rpf_noise: 0.02,
+            rpf_outliers: true,
         }
     }
 }
@@ -170,7 +191,17 @@ impl FilterConfig {
         {
             return bad("frame.filter.variance_scale", s, "finite and at least 0");
         }
-        Ok(())
+        self.rpf_params(0).validate()
+    }
+
+    /// RPF's parameters, with the seed of its random draws.
+    pub fn rpf_params(&self, seed: u64) -> crate::rpf::RpfParams {
+        crate::rpf::RpfParams {
+            boxes: self.rpf_boxes.clone(),
+            noise: self.rpf_noise,
+            outliers: self.rpf_outliers,
+            seed,
+        }
     }
 }
 
@@ -195,6 +226,8 @@ mod tests {
             ("sigma_normal", "nan"),
             ("variance_scale", "[1.0, -1.0, 1.0, 1.0, 1.0]"),
             ("atrous_iterations", "0"),
+            ("rpf_boxes", "[55, 34]"),
+            ("rpf_noise", "0.0"),
         ] {
             let c: FilterConfig = toml::from_str(&format!("{field} = {value}")).unwrap();
             let e = c.validate().unwrap_err().to_string();

@@ -4,14 +4,18 @@
 //!
 //! - [`data_driven`]: the thesis's data-driven filter, a cross-bilateral filter guided by the
 //!   features, with direct and indirect light filtered apart (thesis Eqs. 6.8-6.21).
+//! - [`svgf`]: a spatio-temporal variance-guided filter in the manner of SVGF.
+//! - [`rpf`]: Random Parameter Filtering, the offline baseline (every sample filtered apart).
 //!
 //! One settings type, [`FilterConfig`] (`[frame.filter]` of pathlight's `Config`), chooses the
 //! method and holds its parameters.
 
+mod atrous;
 pub mod config;
 pub mod data_driven;
 mod exp;
 pub mod features;
+pub mod rpf;
 pub mod svgf;
 
 pub use config::{ColourUnits, DepthUnits, FilterConfig, Method};

@@ -29,11 +29,16 @@
 //!   (capped at 32), as the paper.
 //! - The sky and light sources (`emitter`) pass through with this frame's light and are not
 //!   filtered with their neighbours.
+//!
+//! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
+//! (holes of 32 pixels); the scalar passes here are the reference they are tested against and
+//! run beyond that.
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
+use crate::atrous::{normal_weight, Inputs, Planes, MAX_PAD};
 use crate::exp::{exp_neg, Plain};
 use crate::features::demodulator;
 use crate::FilterError;
@@ -78,12 +83,14 @@ pub struct Svgf {
     gradient: Vec<f32>,
     /// The luminance of `light` (per a-trous pass).
     luminance: Vec<[f32; 2]>,
+    /// The vectorised a-trous passes' planes.
+    planes: Planes,
+    /// Run the scalar a-trous passes (the reference the vectorised ones are tested against).
+    scalar: bool,
 }
 
 const SIGMA_L: f32 = 4.0;
 const SIGMA_Z: f32 = 1.0;
-/// The normal test's exponent, 128 = 2^7 (seven squarings).
-const SIGMA_N_SQUARINGS: u32 = 7;
 const MIN_ALPHA: f32 = 0.2;
 const MAX_LENGTH: f32 = 32.0;
 const DEPTH_TOLERANCE: f32 = 0.1;
@@ -92,6 +99,13 @@ const NORMAL_COSINE: f32 = 0.9;
 impl Svgf {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Runs the scalar a-trous passes instead of the vectorised ones (same weights and sums;
+    /// for tests and benchmarks).
+    #[doc(hidden)]
+    pub fn set_scalar(&mut self, scalar: bool) {
+        self.scalar = scalar;
     }
 
     /// Forgets the history (a cut: the next frame starts afresh).
@@ -139,12 +153,37 @@ impl Svgf {
         self.temporal(f);
         self.spatial_variance(f);
         self.depth_gradient(f);
-        for i in 0..iterations {
-            self.atrous(f, 1 << i);
-            std::mem::swap(&mut self.light, &mut self.next_light);
-            std::mem::swap(&mut self.variance, &mut self.next_variance);
-            if i == 0 {
-                self.history.clone_from(&self.light);
+        let pad = 2usize << iterations.saturating_sub(1);
+        if pad <= MAX_PAD && !self.scalar {
+            let through = |i| passes_through(f, i);
+            self.planes.load(
+                &Inputs {
+                    width: f.width,
+                    height: f.height,
+                    depth: f.depth,
+                    normal: f.normal,
+                    gradient: &self.gradient,
+                    through: &through,
+                    light: &self.light,
+                    variance: &self.variance,
+                },
+                pad / 2,
+            );
+            for i in 0..iterations {
+                self.planes.pass(1 << i, SIGMA_L, SIGMA_Z, &through);
+                if i == 0 {
+                    self.planes.light(&mut self.history);
+                }
+            }
+            self.planes.light(&mut self.light);
+        } else {
+            for i in 0..iterations {
+                self.atrous(f, 1 << i);
+                std::mem::swap(&mut self.light, &mut self.next_light);
+                std::mem::swap(&mut self.variance, &mut self.next_variance);
+                if i == 0 {
+                    self.history.clone_from(&self.light);
+                }
             }
         }
         if iterations == 0 {
@@ -404,19 +443,4 @@ impl Svgf {
 /// The sky and light sources: passed through, nobody's neighbour.
 fn passes_through(f: &SvgfFrame, i: usize) -> bool {
     !f.depth[i].is_finite() || f.emitter[i]
-}
-
-/// `max(0, cos)^128` by repeated squaring (`powi` is a library call); 0 below a cosine of 0.6,
-/// where it is under 1e-28 (and squaring further would reach subnormal numbers, which are slow).
-#[inline(always)]
-fn normal_weight(cos: f32) -> f32 {
-    // (A NaN cosine gives 0 too.)
-    if cos.is_nan() || cos < 0.6 {
-        return 0.0;
-    }
-    let mut w = cos;
-    for _ in 0..SIGMA_N_SQUARINGS {
-        w *= w;
-    }
-    w
 }

@@ -501,7 +501,10 @@ fn a_filter_kept_across_frames_gives_what_a_new_one_gives() {
             .collect::<Vec<_>>()
     };
     assert_eq!(bits(&run(&second, &c)), bits(&second.filter(&c)));
-    let small = FilterConfig { kernel: 5, ..c };
+    let small = FilterConfig {
+        kernel: 5,
+        ..c.clone()
+    };
     let third = busy(20, 9, 3);
     assert_eq!(bits(&run(&third, &small)), bits(&third.filter(&small)));
     assert_eq!(bits(&run(&second, &c)), bits(&second.filter(&c)));

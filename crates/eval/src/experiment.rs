@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use pathlight_core::rng::hash;
 use pathlight_render::config::{CameraConfig, MAX_SPP};
+use pathlight_render::denoise::Method;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::{FrameReport, Pipeline};
 use pathlight_render::{Config, World};
@@ -208,6 +209,39 @@ impl Runner<'_> {
                     seed,
                     ..spec.configuration_config(&c.config, view)
                 };
+                if c.config.frame.filter.method == Method::Rpf {
+                    // The offline filter: each measured view on its own, from the reference
+                    // path tracer's samples at each sample budget.
+                    for &(v, ref reference) in &references {
+                        let task =
+                            format!("{} (RPF), run {}/{}", c.name, rep + 1, spec.repetitions);
+                        let run = ViewRun {
+                            runner: self,
+                            world,
+                            reference,
+                            task: &task,
+                            name: &c.name,
+                            rep,
+                            seed,
+                            view: v,
+                        };
+                        let snapshot =
+                            run.measure_rpf(&config_at(&views[v]), &mut results.measurements)?;
+                        let Some(snapshot) = snapshot else {
+                            results.slopes = slopes(spec, &results.measurements);
+                            return Ok(Outcome {
+                                results,
+                                snapshots: None,
+                            });
+                        };
+                        if rep == 0 && v == last_view {
+                            snapshots
+                                .images
+                                .push((c.name.clone(), snapshot.0, snapshot.1));
+                        }
+                    }
+                    continue;
+                }
                 let mut pipeline = Pipeline::new(config_at(&views[0]));
                 for (v, view) in views.iter().enumerate() {
                     pipeline.set_config(&config_at(view));
@@ -360,6 +394,56 @@ impl ViewRun<'_> {
                 };
                 last = Some((label, image.clone()));
             }
+        }
+        Ok(last)
+    }
+
+    /// RPF ([`pathlight_render::rpf`]) at each sample budget: the reference path tracer's
+    /// samples at that count, filtered; the time is the tracing's and the filter's (stages
+    /// `trace` and `rpf`). Time budgets are not measured (the filter takes seconds to
+    /// minutes). Returns the last image with its label, or none when cancelled.
+    fn measure_rpf(
+        &self,
+        config: &Config,
+        out: &mut Vec<Measurement>,
+    ) -> Result<Option<(String, Image)>, EvalError> {
+        let budget = &self.runner.spec.budget;
+        let mut last = None;
+        for &spp in &budget.spp {
+            let config = Config {
+                spp,
+                ..config.clone()
+            };
+            let camera = self.world.camera(&config);
+            let progress = |f: f32| {
+                (self.runner.progress)(&Progress {
+                    task: &format!("{}, {spp} spp", self.task),
+                    done: (f.clamp(0.0, 1.0) * 1000.0) as u64,
+                    total: 1000,
+                })
+            };
+            let rendered = pathlight_render::rpf::render(
+                self.world,
+                &camera,
+                &config,
+                self.runner.cancel,
+                &progress,
+            )
+            .map_err(|error| EvalError::Filter {
+                configuration: self.name.to_owned(),
+                error,
+            })?;
+            let Some(r) = rendered else {
+                return Ok(None);
+            };
+            let stages = BTreeMap::from([
+                ("trace".to_owned(), r.trace_ms),
+                ("rpf".to_owned(), r.filter_ms),
+            ]);
+            let ms = r.trace_ms + r.filter_ms;
+            let image = Image::new(config.width, config.height, r.filtered);
+            out.push(self.measurement(BudgetPoint::Spp(spp), spp as f64, ms, &stages, &image)?);
+            last = Some((format!("{spp} spp, RPF, {:.1} s", ms / 1e3), image));
         }
         Ok(last)
     }

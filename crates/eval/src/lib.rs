@@ -36,6 +36,11 @@ pub enum EvalError {
     Metric(#[from] metrics::MetricError),
     #[error(transparent)]
     Plot(#[from] plot::PlotError),
+    #[error("configuration {configuration}: {error}")]
+    Filter {
+        configuration: String,
+        error: pathlight_render::denoise::FilterError,
+    },
 }
 
 impl EvalError {

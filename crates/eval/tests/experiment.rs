@@ -285,3 +285,48 @@ fn sample_budgets_count_the_samples_frames_actually_traced() {
     // the last frame's samples (at most one per pixel).
     assert!(m.spp >= 6.0 && m.spp < 7.0, "{m:?}");
 }
+
+#[test]
+fn an_rpf_configuration_filters_the_reference_tracers_samples_at_each_sample_budget() {
+    // RPF is offline: measured at the sample budgets only (time budgets do not apply), with
+    // the stages `trace` and `rpf`; at 8 spp and above (its regime: with fewer samples its
+    // neighbourhoods are small and its mutual information mostly estimator bias) it lowers
+    // relMSE against the unfiltered image of the same budget.
+    let mut spec = Spec::parse(SPEC).unwrap();
+    spec.repetitions = 1;
+    spec.budget.spp = vec![8, 16];
+    spec.budget.time_ms = vec![50.0];
+    spec.reference.spp = 256;
+    spec.metrics = vec![Metric::Relmse];
+    spec.configurations.truncate(2);
+    spec.configurations[0].name = "unfiltered".into();
+    spec.configurations[1].name = "rpf".into();
+    let c = &mut spec.configurations[1].config;
+    c.frame.filter.method = pathlight_render::denoise::Method::Rpf;
+    c.frame.filter.rpf_boxes = vec![15, 7];
+    for c in &mut spec.configurations {
+        c.config.sampler = Default::default();
+    }
+    let outcome = run(&spec, &temp_dir("rpf").join("cache"), None);
+    let r = &outcome.results;
+    let rpf: Vec<&Measurement> = r
+        .measurements
+        .iter()
+        .filter(|m| m.configuration == "rpf")
+        .collect();
+    assert_eq!(
+        rpf.iter().map(|m| m.budget).collect::<Vec<_>>(),
+        vec![BudgetPoint::Spp(8), BudgetPoint::Spp(16)]
+    );
+    for m in &rpf {
+        let stages: Vec<&str> = m.stages.keys().map(String::as_str).collect();
+        assert_eq!(stages, ["rpf", "trace"]);
+        let plain = r
+            .measurements
+            .iter()
+            .find(|p| p.configuration == "unfiltered" && p.budget == m.budget)
+            .unwrap();
+        let (a, b) = (m.metrics[&Metric::Relmse], plain.metrics[&Metric::Relmse]);
+        assert!(a < b, "{:?}: relMSE {a} with RPF, {b} without", m.budget);
+    }
+}

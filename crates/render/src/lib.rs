@@ -16,6 +16,7 @@ pub mod output;
 pub mod part;
 pub mod path;
 pub mod renderer;
+pub mod rpf;
 pub mod sampler;
 pub mod surface;
 pub mod world;

@@ -17,7 +17,7 @@ use crate::surface::{offset_origin, Shading, Surface};
 use crate::world::World;
 
 /// Sampler dimensions used by the camera (film jitter and lens).
-const CAMERA_DIMENSIONS: u32 = 4;
+pub(crate) const CAMERA_DIMENSIONS: u32 = 4;
 /// Sampler dimensions used per path vertex: light choice, light point (2), lobe, direction (2),
 /// Russian roulette, and one spare so that each vertex starts a fresh set of four.
 const VERTEX_DIMENSIONS: u32 = 8;

@@ -373,6 +373,7 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             Method::None => "none",
             Method::DataDriven => "data-driven",
             Method::Svgf => "svgf",
+            Method::Rpf => "rpf (offline: pathlight render)",
         })
         .show_ui(ui, |ui| {
             ui.selectable_value(&mut f.method, Method::None, "none");

@@ -163,7 +163,7 @@ impl Filter {
         match config.method {
             Method::DataDriven => self.run_data_driven(config, history, width, height),
             Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
-            Method::None => Ok(()),
+            Method::None | Method::Rpf => Ok(()),
         }
     }
 

@@ -574,7 +574,7 @@ impl Pipeline {
         }
         self.frame_number += 1;
         let method = self.config.frame.filter.method;
-        if method != pathlight_denoise::Method::None {
+        if method.in_frame() {
             let t = Instant::now();
             let svgf = method == pathlight_denoise::Method::Svgf;
             if traced && !svgf {

@@ -1,0 +1,422 @@
+//! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 8 centre pixels per
+//! SIMD register (AVX2 with FMA where the processor has them): the same weights, taps and
+//! order of sums as the scalar pass in `svgf.rs`, which stays as the reference (a test holds
+//! them together) and for passes too wide for the planes' padding.
+//!
+//! The planes carry a border of `pad` pixels (twice the widest hole) whose normal is zero, so a
+//! tap that falls outside the image weighs exactly 0, as the scalar pass's bounds test gives;
+//! the sky and light sources have a zero normal too (nobody's neighbour). Rows are
+//! `[plane][pitch]` blocks, so each thread writes whole rows.
+
+use glam::Vec3;
+use pathlight_core::color::luminance;
+use rayon::prelude::*;
+
+use crate::exp::{exp_neg, MulAdd, Plain};
+
+const LANES: usize = 8;
+type Lanes = [f32; LANES];
+
+/// Widest padding the planes take: holes up to 32 pixels (six passes).
+pub const MAX_PAD: usize = 64;
+
+/// The B3-spline's 1D weights at offsets 0, 1, 2.
+const H: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+
+// Static planes (per frame).
+const Z: usize = 0;
+const NX: usize = 1;
+const G: usize = 4;
+/// 1 inside the image, 0 in the border.
+const IN: usize = 5;
+const STATIC: usize = 6;
+// Dynamic planes (per pass): direct rgb, indirect rgb, the two variances, the two luminances,
+// the two inverse sigmas of the luminance test.
+const L: usize = 0;
+const V: usize = 6;
+const LUM: usize = 8;
+const INV: usize = 10;
+const DYNAMIC: usize = 12;
+
+/// A padded plane layout.
+#[derive(Debug, Clone, Copy, Default)]
+struct Grid {
+    width: usize,
+    height: usize,
+    pad: usize,
+    pitch: usize,
+    planes: usize,
+}
+
+impl Grid {
+    fn new(width: usize, height: usize, pad: usize, planes: usize) -> Self {
+        Self {
+            width,
+            height,
+            pad,
+            pitch: width + 2 * pad + LANES,
+            planes,
+        }
+    }
+
+    fn row(&self) -> usize {
+        self.pitch * self.planes
+    }
+
+    fn len(&self) -> usize {
+        self.row() * (self.height + 2 * self.pad)
+    }
+
+    /// Index of pixel (x, y) (image coordinates, may reach into the border) in plane `p`.
+    #[inline(always)]
+    fn at(&self, x: i64, y: i64, p: usize) -> usize {
+        ((y + self.pad as i64) as usize) * self.row()
+            + p * self.pitch
+            + (x + self.pad as i64) as usize
+    }
+}
+
+/// The planes of one frame's a-trous passes.
+#[derive(Default)]
+pub struct Planes {
+    fixed: Grid,
+    moving: Grid,
+    statics: Vec<f32>,
+    current: Vec<f32>,
+    next: Vec<f32>,
+}
+
+/// One frame's per-pixel inputs to the passes (row-major, unpadded).
+pub struct Inputs<'a> {
+    pub width: usize,
+    pub height: usize,
+    pub depth: &'a [f32],
+    pub normal: &'a [Vec3],
+    pub gradient: &'a [f32],
+    /// The sky and light sources: passed through, nobody's neighbour.
+    pub through: &'a (dyn Fn(usize) -> bool + Sync),
+    pub light: &'a [[Vec3; 2]],
+    pub variance: &'a [[f32; 2]],
+}
+
+impl Planes {
+    /// Lays out this frame's inputs for passes with holes up to `max_step` pixels (at most
+    /// [`MAX_PAD`] / 2).
+    pub fn load(&mut self, f: &Inputs, max_step: usize) {
+        let (w, h) = (f.width, f.height);
+        let pad = 2 * max_step;
+        debug_assert!(pad <= MAX_PAD);
+        self.fixed = Grid::new(w, h, pad, STATIC);
+        self.moving = Grid::new(w, h, pad, DYNAMIC);
+        let (fixed, moving) = (self.fixed, self.moving);
+        self.statics.clear();
+        self.statics.resize(fixed.len(), 0.0);
+        self.statics
+            .par_chunks_mut(fixed.row())
+            .enumerate()
+            .for_each(|(py, row)| {
+                let y = py as i64 - pad as i64;
+                if y < 0 || y >= h as i64 {
+                    return;
+                }
+                for x in 0..w {
+                    let i = y as usize * w + x;
+                    let at = |p: usize| p * fixed.pitch + pad + x;
+                    row[at(Z)] = f.depth[i];
+                    row[at(G)] = f.gradient[i];
+                    row[at(IN)] = 1.0;
+                    let n = if (f.through)(i) {
+                        Vec3::ZERO
+                    } else {
+                        f.normal[i]
+                    };
+                    for k in 0..3 {
+                        row[at(NX + k)] = n[k];
+                    }
+                }
+            });
+        for buffer in [&mut self.current, &mut self.next] {
+            buffer.clear();
+            buffer.resize(moving.len(), 0.0);
+        }
+        self.current
+            .par_chunks_mut(moving.row())
+            .enumerate()
+            .for_each(|(py, row)| {
+                let y = py as i64 - pad as i64;
+                if y < 0 || y >= h as i64 {
+                    return;
+                }
+                for x in 0..w {
+                    let i = y as usize * w + x;
+                    let at = |p: usize| p * moving.pitch + pad + x;
+                    for s in 0..2 {
+                        for k in 0..3 {
+                            row[at(L + 3 * s + k)] = f.light[i][s][k];
+                        }
+                        row[at(V + s)] = f.variance[i][s];
+                        row[at(LUM + s)] = luminance(f.light[i][s]);
+                    }
+                }
+            });
+    }
+
+    /// The current light of every pixel, row-major.
+    pub fn light(&self, out: &mut Vec<[Vec3; 2]>) {
+        let g = self.moving;
+        out.clear();
+        out.extend((0..g.width * g.height).map(|i| {
+            let (x, y) = ((i % g.width) as i64, (i / g.width) as i64);
+            let c = |p: usize| self.current[g.at(x, y, p)];
+            [
+                Vec3::new(c(L), c(L + 1), c(L + 2)),
+                Vec3::new(c(L + 3), c(L + 4), c(L + 5)),
+            ]
+        }));
+    }
+
+    /// One pass with holes of `step` pixels: `current` filtered into `next`, then swapped.
+    pub fn pass(
+        &mut self,
+        step: usize,
+        sigma_l: f32,
+        sigma_z: f32,
+        through: &(dyn Fn(usize) -> bool + Sync),
+    ) {
+        let g = self.moving;
+        debug_assert!(2 * step <= g.pad);
+        self.inverse_sigmas(sigma_l);
+        let (statics, current) = (&self.statics, &self.current);
+        let pass = Pass {
+            fixed: self.fixed,
+            moving: g,
+            statics,
+            current,
+            step: step as i64,
+            sigma_z,
+        };
+        self.next
+            .par_chunks_mut(g.row())
+            .enumerate()
+            .for_each(|(py, row)| {
+                let y = py as i64 - g.pad as i64;
+                if y < 0 || y >= g.height as i64 {
+                    return;
+                }
+                pass.row(y, row, through);
+            });
+        std::mem::swap(&mut self.current, &mut self.next);
+    }
+
+    /// The luminance test's `1 / (sigma_l sqrt(g(var)) + 1e-4)` per pixel and signal, g the
+    /// variance's 3x3 Gaussian over the pixels inside the image (the scalar pass's: the
+    /// border's zeros add nothing, and the weights of the pixels inside, plane `IN`, sum to
+    /// the same normalisation in the same order).
+    fn inverse_sigmas(&mut self, sigma_l: f32) {
+        let (fg, g) = (self.fixed, self.moving);
+        let (w, h) = (g.width, g.height as i64);
+        let (current, statics) = (&self.current, &self.statics);
+        self.next
+            .par_chunks_mut(g.row())
+            .enumerate()
+            .for_each(|(py, row)| {
+                let y = py as i64 - g.pad as i64;
+                if y < 0 || y >= h {
+                    return;
+                }
+                let mut acc = [vec![0.0f32; w], vec![0.0f32; w]];
+                let mut sum = vec![0.0f32; w];
+                for dy in -1..=1i64 {
+                    for dx in -1..=1i64 {
+                        let k = [0.25, 0.125][(dx.abs() + dy.abs()).min(1) as usize]
+                            * if dx != 0 && dy != 0 { 0.5 } else { 1.0 };
+                        let inside = &statics[fg.at(dx, y + dy, IN)..][..w];
+                        for (s, a) in sum.iter_mut().zip(inside) {
+                            *s += k * a;
+                        }
+                        for (sig, a) in acc.iter_mut().enumerate() {
+                            let v = &current[g.at(dx, y + dy, V + sig)..][..w];
+                            for (a, v) in a.iter_mut().zip(v) {
+                                *a += v * k;
+                            }
+                        }
+                    }
+                }
+                for (sig, a) in acc.iter().enumerate() {
+                    let out = &mut row[(INV + sig) * g.pitch + g.pad..][..w];
+                    for ((o, a), s) in out.iter_mut().zip(a).zip(&sum) {
+                        *o = 1.0 / (sigma_l * (a / s).sqrt() + 1e-4);
+                    }
+                }
+            });
+        let (next, current) = (&self.next, &mut self.current);
+        current
+            .par_chunks_mut(g.row())
+            .zip(next.par_chunks(g.row()))
+            .for_each(|(c, n)| {
+                let r = INV * g.pitch..(INV + 2) * g.pitch;
+                c[r.clone()].copy_from_slice(&n[r]);
+            });
+    }
+}
+
+struct Pass<'a> {
+    fixed: Grid,
+    moving: Grid,
+    statics: &'a [f32],
+    current: &'a [f32],
+    step: i64,
+    sigma_z: f32,
+}
+
+/// The weighted sums of 8 centre pixels.
+#[derive(Default)]
+struct Sums {
+    w: [Lanes; 2],
+    light: [Lanes; 6],
+    var: [Lanes; 2],
+}
+
+impl Pass<'_> {
+    /// Row `y` of the output into `row` (its `[plane][pitch]` block).
+    fn row(&self, y: i64, row: &mut [f32], through: &(dyn Fn(usize) -> bool + Sync)) {
+        let g = self.moving;
+        for x0 in (0..g.width).step_by(LANES) {
+            let sums = self.group(x0 as i64, y);
+            for j in 0..LANES.min(g.width - x0) {
+                let x = x0 + j;
+                let at = |p: usize| p * g.pitch + g.pad + x;
+                let i = y as usize * g.width + x;
+                if through(i) {
+                    for p in L..LUM {
+                        row[at(p)] = self.current[g.at(x as i64, y, p)];
+                    }
+                    continue;
+                }
+                for s in 0..2 {
+                    let sw = sums.w[s][j];
+                    let c = Vec3::new(
+                        sums.light[3 * s][j],
+                        sums.light[3 * s + 1][j],
+                        sums.light[3 * s + 2][j],
+                    ) / sw;
+                    for k in 0..3 {
+                        row[at(L + 3 * s + k)] = c[k];
+                    }
+                    row[at(V + s)] = sums.var[s][j] / (sw * sw);
+                }
+            }
+            for j in 0..LANES.min(g.width - x0) {
+                let at = |p: usize| p * g.pitch + g.pad + x0 + j;
+                for s in 0..2 {
+                    let c = Vec3::new(
+                        row[at(L + 3 * s)],
+                        row[at(L + 3 * s + 1)],
+                        row[at(L + 3 * s + 2)],
+                    );
+                    row[at(LUM + s)] = luminance(c);
+                }
+            }
+        }
+    }
+
+    fn group(&self, x0: i64, y: i64) -> Sums {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the processor has AVX2 and FMA (checked just above).
+            return unsafe { self.group_avx2(x0, y) };
+        }
+        self.group_lanes::<Plain>(x0, y)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn group_avx2(&self, x0: i64, y: i64) -> Sums {
+        self.group_lanes::<crate::exp::Fused>(x0, y)
+    }
+
+    #[inline(always)]
+    fn lanes(buffer: &[f32], at: usize) -> Lanes {
+        buffer[at..at + LANES].try_into().expect("8 lanes")
+    }
+
+    #[inline(always)]
+    fn group_lanes<M: MulAdd>(&self, x0: i64, y: i64) -> Sums {
+        let (fg, mg) = (self.fixed, self.moving);
+        let st = |p: usize, x: i64, y: i64| Self::lanes(self.statics, fg.at(x, y, p));
+        let dy = |p: usize, x: i64, y: i64| Self::lanes(self.current, mg.at(x, y, p));
+        let zc = st(Z, x0, y);
+        let gz = st(G, x0, y);
+        let nc = [st(NX, x0, y), st(NX + 1, x0, y), st(NX + 2, x0, y)];
+        let lc = [dy(LUM, x0, y), dy(LUM + 1, x0, y)];
+        let inv = [dy(INV, x0, y), dy(INV + 1, x0, y)];
+        // The centre tap: the kernel's weight whatever the tests say.
+        let kc = H[0] * H[0];
+        let mut s = Sums::default();
+        for sig in 0..2 {
+            s.w[sig] = [kc; LANES];
+            s.var[sig] = dy(V + sig, x0, y).map(|v| v * kc * kc);
+            for k in 0..3 {
+                s.light[3 * sig + k] = dy(L + 3 * sig + k, x0, y).map(|l| l * kc);
+            }
+        }
+        let step = self.step;
+        // The depth test's `1 / (sigma_z |grad z| |p - q| + 1e-4 z)` for the five distances
+        // the taps have (|k|^2 = 1, 2, 4, 5, 8).
+        let rz: [Lanes; 5] = std::array::from_fn(|d| {
+            let distance = ([1.0f32, 2.0, 4.0, 5.0, 8.0][d]).sqrt() * step as f32;
+            std::array::from_fn(|j| 1.0 / (self.sigma_z * gz[j] * distance + 1e-4 * zc[j]))
+        });
+        for ky in -2..=2i64 {
+            for kx in -2..=2i64 {
+                if kx == 0 && ky == 0 {
+                    continue;
+                }
+                let rz = &rz[match kx * kx + ky * ky {
+                    1 => 0,
+                    2 => 1,
+                    4 => 2,
+                    5 => 3,
+                    _ => 4,
+                }];
+                let (qx, qy) = (x0 + kx * step, y + ky * step);
+                let kernel = H[kx.unsigned_abs() as usize] * H[ky.unsigned_abs() as usize];
+                let zq = st(Z, qx, qy);
+                let nq = [st(NX, qx, qy), st(NX + 1, qx, qy), st(NX + 2, qx, qy)];
+                let lq = [dy(LUM, qx, qy), dy(LUM + 1, qx, qy)];
+                let light: [Lanes; 6] = std::array::from_fn(|p| dy(L + p, qx, qy));
+                let var = [dy(V, qx, qy), dy(V + 1, qx, qy)];
+                for j in 0..LANES {
+                    let wz = -(zq[j] - zc[j]).abs() * rz[j];
+                    let cos = nq[0][j] * nc[0][j] + nq[1][j] * nc[1][j] + nq[2][j] * nc[2][j];
+                    let wn = normal_weight(cos);
+                    for sig in 0..2 {
+                        let e = wz + -(lq[sig][j] - lc[sig][j]).abs() * inv[sig][j];
+                        let wq = if wn > 0.0 && e > -30.0 {
+                            kernel * wn * exp_neg::<M>(e)
+                        } else {
+                            0.0
+                        };
+                        s.w[sig][j] += wq;
+                        for k in 0..3 {
+                            s.light[3 * sig + k][j] += light[3 * sig + k][j] * wq;
+                        }
+                        s.var[sig][j] += var[sig][j] * wq * wq;
+                    }
+                }
+            }
+        }
+        s
+    }
+}
+
+/// `max(0, cos)^128` by repeated squaring; 0 below a cosine of 0.6 (and for NaN).
+#[inline(always)]
+pub fn normal_weight(cos: f32) -> f32 {
+    let mut w = if cos >= 0.6 { cos } else { 0.0 };
+    for _ in 0..7 {
+        w *= w;
+    }
+    w
+}
