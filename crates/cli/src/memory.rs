@@ -7,6 +7,13 @@ pub fn peak_rss_bytes() -> Option<u64> {
     parse_status_kib(&status, "VmHWM:").map(|kib| kib * 1024)
 }
 
+/// The peak resident set size for a report line: "123 MiB", or "unknown".
+pub fn peak_rss_text(peak: Option<u64>) -> String {
+    peak.map_or("unknown".to_owned(), |b| {
+        format!("{:.0} MiB", b as f64 / (1 << 20) as f64)
+    })
+}
+
 /// The value of a `Key:   1234 kB` line of `/proc/<pid>/status`, in KiB.
 fn parse_status_kib(status: &str, key: &str) -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with(key))?;

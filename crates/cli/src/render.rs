@@ -16,7 +16,7 @@ use pathlight_render::renderer::{pass_targets, render_range_pass};
 use pathlight_render::{Camera, Config, Film, World};
 
 use crate::config_args::{check, ConfigArgs};
-use crate::memory::peak_rss_bytes;
+use crate::memory::{peak_rss_bytes, peak_rss_text};
 use crate::terminal::{ctrl_c_flag, progress_bar, thread_pool};
 use crate::SceneArgs;
 
@@ -290,10 +290,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         render_s,
         samples as f64 / render_s / 1e6,
         setup_ms,
-        peak.map_or("unknown".to_owned(), |b| format!(
-            "{:.0} MiB",
-            b as f64 / (1 << 20) as f64
-        ))
+        peak_rss_text(peak)
     );
     if args.json {
         let json = serde_json::json!({
@@ -365,10 +362,7 @@ fn render_rpf(
         config.spp,
         r.trace_ms / 1e3,
         r.filter_ms / 1e3,
-        peak.map_or("unknown".to_owned(), |b| format!(
-            "{:.0} MiB",
-            b as f64 / (1 << 20) as f64
-        ))
+        peak_rss_text(peak)
     );
     if args.json {
         let json = serde_json::json!({

@@ -67,6 +67,21 @@ impl Grid {
         self.row() * (self.height + 2 * self.pad)
     }
 
+    /// Runs `f(y, row)` on every image row of `buffer` (a buffer of this layout), in parallel;
+    /// the border's rows are left alone.
+    fn for_rows(&self, buffer: &mut [f32], f: impl Fn(i64, &mut [f32]) + Sync) {
+        let (pad, h) = (self.pad as i64, self.height as i64);
+        buffer
+            .par_chunks_mut(self.row())
+            .enumerate()
+            .for_each(|(py, row)| {
+                let y = py as i64 - pad;
+                if (0..h).contains(&y) {
+                    f(y, row);
+                }
+            });
+    }
+
     /// Index of pixel (x, y) (image coordinates, may reach into the border) in plane `p`.
     #[inline(always)]
     fn at(&self, x: i64, y: i64, p: usize) -> usize {
@@ -111,54 +126,40 @@ impl Planes {
         let (fixed, moving) = (self.fixed, self.moving);
         self.statics.clear();
         self.statics.resize(fixed.len(), 0.0);
-        self.statics
-            .par_chunks_mut(fixed.row())
-            .enumerate()
-            .for_each(|(py, row)| {
-                let y = py as i64 - pad as i64;
-                if y < 0 || y >= h as i64 {
-                    return;
+        fixed.for_rows(&mut self.statics, |y, row| {
+            for x in 0..w {
+                let i = y as usize * w + x;
+                let at = |p: usize| p * fixed.pitch + pad + x;
+                row[at(Z)] = f.depth[i];
+                row[at(G)] = f.gradient[i];
+                row[at(IN)] = 1.0;
+                let n = if (f.through)(i) {
+                    Vec3::ZERO
+                } else {
+                    f.normal[i]
+                };
+                for k in 0..3 {
+                    row[at(NX + k)] = n[k];
                 }
-                for x in 0..w {
-                    let i = y as usize * w + x;
-                    let at = |p: usize| p * fixed.pitch + pad + x;
-                    row[at(Z)] = f.depth[i];
-                    row[at(G)] = f.gradient[i];
-                    row[at(IN)] = 1.0;
-                    let n = if (f.through)(i) {
-                        Vec3::ZERO
-                    } else {
-                        f.normal[i]
-                    };
-                    for k in 0..3 {
-                        row[at(NX + k)] = n[k];
-                    }
-                }
-            });
+            }
+        });
         for buffer in [&mut self.current, &mut self.next] {
             buffer.clear();
             buffer.resize(moving.len(), 0.0);
         }
-        self.current
-            .par_chunks_mut(moving.row())
-            .enumerate()
-            .for_each(|(py, row)| {
-                let y = py as i64 - pad as i64;
-                if y < 0 || y >= h as i64 {
-                    return;
-                }
-                for x in 0..w {
-                    let i = y as usize * w + x;
-                    let at = |p: usize| p * moving.pitch + pad + x;
-                    for s in 0..2 {
-                        for k in 0..3 {
-                            row[at(L + 3 * s + k)] = f.light[i][s][k];
-                        }
-                        row[at(V + s)] = f.variance[i][s];
-                        row[at(LUM + s)] = luminance(f.light[i][s]);
+        moving.for_rows(&mut self.current, |y, row| {
+            for x in 0..w {
+                let i = y as usize * w + x;
+                let at = |p: usize| p * moving.pitch + pad + x;
+                for s in 0..2 {
+                    for k in 0..3 {
+                        row[at(L + 3 * s + k)] = f.light[i][s][k];
                     }
+                    row[at(V + s)] = f.variance[i][s];
+                    row[at(LUM + s)] = luminance(f.light[i][s]);
                 }
-            });
+            }
+        });
     }
 
     /// The current light of every pixel, row-major.
@@ -195,16 +196,7 @@ impl Planes {
             step: step as i64,
             sigma_z,
         };
-        self.next
-            .par_chunks_mut(g.row())
-            .enumerate()
-            .for_each(|(py, row)| {
-                let y = py as i64 - g.pad as i64;
-                if y < 0 || y >= g.height as i64 {
-                    return;
-                }
-                pass.row(y, row, through);
-            });
+        g.for_rows(&mut self.next, |y, row| pass.row(y, row, through));
         std::mem::swap(&mut self.current, &mut self.next);
     }
 
@@ -214,41 +206,34 @@ impl Planes {
     /// the same normalisation in the same order).
     fn inverse_sigmas(&mut self, sigma_l: f32) {
         let (fg, g) = (self.fixed, self.moving);
-        let (w, h) = (g.width, g.height as i64);
+        let w = g.width;
         let (current, statics) = (&self.current, &self.statics);
-        self.next
-            .par_chunks_mut(g.row())
-            .enumerate()
-            .for_each(|(py, row)| {
-                let y = py as i64 - g.pad as i64;
-                if y < 0 || y >= h {
-                    return;
-                }
-                let mut acc = [vec![0.0f32; w], vec![0.0f32; w]];
-                let mut sum = vec![0.0f32; w];
-                for dy in -1..=1i64 {
-                    for dx in -1..=1i64 {
-                        let k = [0.25, 0.125][(dx.abs() + dy.abs()).min(1) as usize]
-                            * if dx != 0 && dy != 0 { 0.5 } else { 1.0 };
-                        let inside = &statics[fg.at(dx, y + dy, IN)..][..w];
-                        for (s, a) in sum.iter_mut().zip(inside) {
-                            *s += k * a;
-                        }
-                        for (sig, a) in acc.iter_mut().enumerate() {
-                            let v = &current[g.at(dx, y + dy, V + sig)..][..w];
-                            for (a, v) in a.iter_mut().zip(v) {
-                                *a += v * k;
-                            }
+        g.for_rows(&mut self.next, |y, row| {
+            let mut acc = [vec![0.0f32; w], vec![0.0f32; w]];
+            let mut sum = vec![0.0f32; w];
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let k = [0.25, 0.125][(dx.abs() + dy.abs()).min(1) as usize]
+                        * if dx != 0 && dy != 0 { 0.5 } else { 1.0 };
+                    let inside = &statics[fg.at(dx, y + dy, IN)..][..w];
+                    for (s, a) in sum.iter_mut().zip(inside) {
+                        *s += k * a;
+                    }
+                    for (sig, a) in acc.iter_mut().enumerate() {
+                        let v = &current[g.at(dx, y + dy, V + sig)..][..w];
+                        for (a, v) in a.iter_mut().zip(v) {
+                            *a += v * k;
                         }
                     }
                 }
-                for (sig, a) in acc.iter().enumerate() {
-                    let out = &mut row[(INV + sig) * g.pitch + g.pad..][..w];
-                    for ((o, a), s) in out.iter_mut().zip(a).zip(&sum) {
-                        *o = 1.0 / (sigma_l * (a / s).sqrt() + 1e-4);
-                    }
+            }
+            for (sig, a) in acc.iter().enumerate() {
+                let out = &mut row[(INV + sig) * g.pitch + g.pad..][..w];
+                for ((o, a), s) in out.iter_mut().zip(a).zip(&sum) {
+                    *o = 1.0 / (sigma_l * (a / s).sqrt() + 1e-4);
                 }
-            });
+            }
+        });
         let (next, current) = (&self.next, &mut self.current);
         current
             .par_chunks_mut(g.row())

@@ -209,24 +209,24 @@ impl Runner<'_> {
                     seed,
                     ..spec.configuration_config(&c.config, view)
                 };
+                let view_run = |v, reference, task| ViewRun {
+                    runner: self,
+                    world,
+                    reference,
+                    task,
+                    name: &c.name,
+                    rep,
+                    seed,
+                    view: v,
+                };
                 if c.config.frame.filter.method == Method::Rpf {
                     // The offline filter: each measured view on its own, from the reference
                     // path tracer's samples at each sample budget.
                     for &(v, ref reference) in &references {
                         let task =
                             format!("{} (RPF), run {}/{}", c.name, rep + 1, spec.repetitions);
-                        let run = ViewRun {
-                            runner: self,
-                            world,
-                            reference,
-                            task: &task,
-                            name: &c.name,
-                            rep,
-                            seed,
-                            view: v,
-                        };
-                        let snapshot =
-                            run.measure_rpf(&config_at(&views[v]), &mut results.measurements)?;
+                        let snapshot = view_run(v, reference, task)
+                            .measure_rpf(&config_at(&views[v]), &mut results.measurements)?;
                         let Some(snapshot) = snapshot else {
                             results.slopes = slopes(spec, &results.measurements);
                             return Ok(Outcome {
@@ -260,17 +260,8 @@ impl Runner<'_> {
                         v + 1,
                         views.len()
                     );
-                    let run = ViewRun {
-                        runner: self,
-                        world,
-                        reference,
-                        task: &task,
-                        name: &c.name,
-                        rep,
-                        seed,
-                        view: v,
-                    };
-                    let snapshot = run.measure(&mut pipeline, &mut results.measurements)?;
+                    let snapshot = view_run(v, reference, task)
+                        .measure(&mut pipeline, &mut results.measurements)?;
                     if self.cancel.load(Ordering::Relaxed) {
                         results.slopes = slopes(spec, &results.measurements);
                         return Ok(Outcome {
@@ -306,7 +297,7 @@ struct ViewRun<'a> {
     runner: &'a Runner<'a>,
     world: &'a World,
     reference: &'a Image,
-    task: &'a str,
+    task: String,
     name: &'a str,
     rep: u32,
     seed: u64,
@@ -367,7 +358,7 @@ impl ViewRun<'_> {
                 if max_ms > 0.0 { ms / max_ms } else { 0.0 },
             );
             (self.runner.progress)(&Progress {
-                task: self.task,
+                task: &self.task,
                 done: ((done.min(1.0)) * 1000.0) as u64,
                 total: 1000,
             });
