@@ -174,11 +174,11 @@ impl SampleSet {
             .checked_mul(height)
             .and_then(|n| n.checked_mul(spp))
             .and_then(|n| n.checked_mul(stride))
-            .filter(|&n| n <= 1 << 32)
+            .filter(|&n| n <= 1 << 30)
             .ok_or_else(|| FilterError::Parameter {
                 field: "size",
                 value: format!("{width}x{height} at {spp} spp"),
-                requirement: "at most 2^32 values of sample vectors (16 GiB)".to_owned(),
+                requirement: "at most 2^30 values of sample vectors (4 GiB)".to_owned(),
             })?;
         Ok(Self {
             width,
