@@ -357,6 +357,7 @@ mod tests {
             .with_toml(include_str!("../../../experiments/realtime.toml"))
             .unwrap();
         c.validate().unwrap();
-        assert!(c.frame.reprojection.enabled);
+        assert_eq!(c.frame.filter.method, pathlight_denoise::Method::Svgf);
+        assert!(!c.frame.reprojection.enabled && !c.frame.accumulate);
     }
 }
