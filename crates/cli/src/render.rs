@@ -312,8 +312,8 @@ fn render(args: &RenderArgs) -> Result<()> {
 
 /// `render --filter rpf`: traces every sample into RPF's vectors, filters them, writes the
 /// filtered image (with --aovs and .exr, the unfiltered mean of the same samples as the layer
-/// `unfiltered`). Ctrl-C stops it with nothing written (RPF needs every sample); no
-/// checkpoints.
+/// `unfiltered`). Ctrl-C while tracing writes nothing (RPF needs every sample); while
+/// filtering, the unfiltered image of the traced samples. No checkpoints.
 fn render_rpf(
     args: &RenderArgs,
     world: &World,
@@ -341,19 +341,27 @@ fn render_rpf(
     let rendered = pathlight_render::rpf::render(world, camera, config, &cancel, &progress)?;
     bar.finish_and_clear();
     let Some(r) = rendered else {
-        bail!("stopped: RPF needs every sample and the whole filter; nothing written");
+        bail!("stopped while tracing: RPF needs every sample; nothing written");
     };
     let (w, h) = (config.width, config.height);
+    let Some(filtered) = &r.filtered else {
+        write_rgb(&args.out, w, h, &r.unfiltered, &config.display)?;
+        bail!(
+            "stopped while filtering: {} holds the unfiltered image of the {} samples per pixel (RPF cannot resume; run it again to filter)",
+            args.out.display(),
+            config.spp
+        );
+    };
     if args.aovs && Format::from_path(&args.out)? == Format::Exr {
         let mut ch = Channels::new(w, h);
-        ch.add_rgb("", ["R", "G", "B"], &r.filtered);
+        ch.add_rgb("", ["R", "G", "B"], filtered);
         ch.add_rgb("unfiltered", ["R", "G", "B"], &r.unfiltered);
         let bytes = ch
             .encode_exr()
             .map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
         write_atomic(&args.out, &bytes)?;
     } else {
-        write_rgb(&args.out, w, h, &r.filtered, &config.display)?;
+        write_rgb(&args.out, w, h, filtered, &config.display)?;
     }
     let peak = peak_rss_bytes();
     eprintln!(

@@ -177,12 +177,7 @@ fn ctrl_c_keeps_the_work_and_resume_finishes_it_exactly() {
         );
         std::thread::sleep(Duration::from_millis(5));
     }
-    let kill = Command::new("sh")
-        .args(["-c", &format!("kill -INT {}", child.id())])
-        .status()
-        .unwrap();
-    assert!(kill.success());
-    let output = child.wait_with_output().unwrap();
+    let output = interrupt(child);
     let err = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(2), "{err}");
     assert!(err.contains("stopped") && err.contains("--resume"), "{err}");
@@ -344,4 +339,58 @@ fn rpf_filters_the_reference_tracers_own_samples() {
         "render --filter rpf",
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Ctrl-C during RPF's filter keeps the traced samples' unfiltered image (its filter cannot
+/// resume); during the tracing nothing is written.
+#[test]
+fn rpf_stopped_while_filtering_writes_the_unfiltered_image() {
+    let dir = temp_dir("rpf-stop");
+    let out = dir.join("rpf.png");
+    // The tracing takes well under a second, the filter many: stop after a wait (longer if
+    // a loaded machine was still tracing).
+    for wait in [3, 6, 12] {
+        let child = Command::new(env!("CARGO_BIN_EXE_pathlight"))
+            .args([
+                "render",
+                "--filter",
+                "rpf",
+                "--spp",
+                "8",
+                "--width",
+                "160",
+                "--height",
+                "90",
+                "--out",
+                s(&out),
+                "--quiet",
+            ])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_secs(wait));
+        let output = interrupt(child);
+        let err = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{err}");
+        if err.contains("stopped while tracing") {
+            assert!(!out.exists());
+            continue;
+        }
+        assert!(err.contains("stopped while filtering"), "{err}");
+        let bytes = std::fs::read(&out).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        std::fs::remove_dir_all(&dir).unwrap();
+        return;
+    }
+    panic!("the tracing never finished within 12 s");
+}
+
+/// Ctrl-C to `child` (SIGINT), then its output once it has stopped.
+fn interrupt(child: std::process::Child) -> std::process::Output {
+    let kill = Command::new("sh")
+        .args(["-c", &format!("kill -INT {}", child.id())])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    child.wait_with_output().unwrap()
 }

@@ -424,7 +424,11 @@ impl ViewRun<'_> {
                 configuration: self.name.to_owned(),
                 error,
             })?;
-            let Some(r) = rendered else {
+            // Stopped while tracing, or while filtering.
+            let Some(mut r) = rendered else {
+                return Ok(None);
+            };
+            let Some(filtered) = r.filtered.take() else {
                 return Ok(None);
             };
             let stages = BTreeMap::from([
@@ -432,7 +436,7 @@ impl ViewRun<'_> {
                 ("rpf".to_owned(), r.filter_ms),
             ]);
             let ms = r.trace_ms + r.filter_ms;
-            let image = Image::new(config.width, config.height, r.filtered);
+            let image = Image::new(config.width, config.height, filtered);
             out.push(self.measurement(BudgetPoint::Spp(spp), spp as f64, ms, &stages, &image)?);
             last = Some((format!("{spp} spp, RPF, {:.1} s", ms / 1e3), image));
         }

@@ -113,7 +113,8 @@ fn fill(tracer: &PathTracer, x: u32, y: u32, index: u32, v: &mut [f32]) {
 
 /// Traces the samples and filters them: the filtered image and the unfiltered one (the mean of
 /// the same samples), row-major; `progress` gets the fraction done (tracing counts as the
-/// first tenth). None when cancelled.
+/// first tenth). None when cancelled while tracing; when cancelled while filtering, the
+/// unfiltered image alone (`filtered` none).
 pub fn render(
     world: &World,
     camera: &Camera,
@@ -134,12 +135,10 @@ pub fn render(
     let trace_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = std::time::Instant::now();
     let params = config.frame.filter.rpf_params(config.seed);
-    let Some(filtered) = rpf::filter(&set, &params, cancel, &|f| progress(0.1 + 0.9 * f))? else {
-        return Ok(None);
-    };
+    let filtered = rpf::filter(&set, &params, cancel, &|f| progress(0.1 + 0.9 * f))?;
     let to_vec3 = |v: Vec<[f32; 3]>| v.into_iter().map(Vec3::from_array).collect();
     Ok(Some(Rendered {
-        filtered: to_vec3(filtered),
+        filtered: filtered.map(to_vec3),
         unfiltered: to_vec3(set.mean_image()),
         trace_ms,
         filter_ms: t.elapsed().as_secs_f64() * 1e3,
@@ -148,7 +147,8 @@ pub fn render(
 
 /// What [`render`] made.
 pub struct Rendered {
-    pub filtered: Vec<Vec3>,
+    /// None when the filter was stopped.
+    pub filtered: Option<Vec<Vec3>>,
     pub unfiltered: Vec<Vec3>,
     /// Wall-clock time of the tracing and of the filter.
     pub trace_ms: f64,
