@@ -27,16 +27,29 @@ const H: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 const Z: usize = 0;
 const NX: usize = 1;
 const G: usize = 4;
-/// 1 inside the image, 0 in the border.
-const IN: usize = 5;
+/// The sum of the variance blur's weights over the pixels inside the image.
+const SUM: usize = 5;
 const STATIC: usize = 6;
-// Dynamic planes (per pass): direct rgb, indirect rgb, the two variances, the two luminances,
-// the two inverse sigmas of the luminance test.
+// Dynamic planes (per pass): direct rgb, indirect rgb, the two variances, the two luminances.
 const L: usize = 0;
 const V: usize = 6;
 const LUM: usize = 8;
-const INV: usize = 10;
-const DYNAMIC: usize = 12;
+const DYNAMIC: usize = 10;
+/// The planes of the luminance test's two inverse sigmas (per pass).
+const SIGMAS: usize = 2;
+
+/// The variance blur's 3x3 taps (dx, dy, weight), row by row (the order both passes sum in).
+pub const BLUR: [(i64, i64, f32); 9] = [
+    (-1, -1, 0.0625),
+    (0, -1, 0.125),
+    (1, -1, 0.0625),
+    (-1, 0, 0.125),
+    (0, 0, 0.25),
+    (1, 0, 0.125),
+    (-1, 1, 0.0625),
+    (0, 1, 0.125),
+    (1, 1, 0.0625),
+];
 
 /// A padded plane layout.
 #[derive(Debug, Clone, Copy, Default)]
@@ -96,7 +109,10 @@ impl Grid {
 pub struct Planes {
     fixed: Grid,
     moving: Grid,
+    sigma: Grid,
     statics: Vec<f32>,
+    /// The inverse sigmas of the current pass.
+    sigmas: Vec<f32>,
     current: Vec<f32>,
     next: Vec<f32>,
 }
@@ -123,6 +139,9 @@ impl Planes {
         debug_assert!(pad <= MAX_PAD);
         self.fixed = Grid::new(w, h, pad, STATIC);
         self.moving = Grid::new(w, h, pad, DYNAMIC);
+        self.sigma = Grid::new(w, h, pad, SIGMAS);
+        self.sigmas.clear();
+        self.sigmas.resize(self.sigma.len(), 0.0);
         let (fixed, moving) = (self.fixed, self.moving);
         self.statics.clear();
         self.statics.resize(fixed.len(), 0.0);
@@ -132,7 +151,13 @@ impl Planes {
                 let at = |p: usize| p * fixed.pitch + pad + x;
                 row[at(Z)] = f.depth[i];
                 row[at(G)] = f.gradient[i];
-                row[at(IN)] = 1.0;
+                row[at(SUM)] = BLUR
+                    .iter()
+                    .filter(|(dx, dy, _)| {
+                        (0..w as i64).contains(&(x as i64 + dx))
+                            && (0..h as i64).contains(&(y + dy))
+                    })
+                    .fold(0.0, |sum, (_, _, k)| sum + k);
                 let n = if (f.through)(i) {
                     Vec3::ZERO
                 } else {
@@ -187,12 +212,13 @@ impl Planes {
         let g = self.moving;
         debug_assert!(2 * step <= g.pad);
         self.inverse_sigmas(sigma_l);
-        let (statics, current) = (&self.statics, &self.current);
         let pass = Pass {
             fixed: self.fixed,
             moving: g,
-            statics,
-            current,
+            sigma: self.sigma,
+            statics: &self.statics,
+            sigmas: &self.sigmas,
+            current: &self.current,
             step: step as i64,
             sigma_z,
         };
@@ -202,52 +228,36 @@ impl Planes {
 
     /// The luminance test's `1 / (sigma_l sqrt(g(var)) + 1e-4)` per pixel and signal, g the
     /// variance's 3x3 Gaussian over the pixels inside the image (the scalar pass's: the
-    /// border's zeros add nothing, and the weights of the pixels inside, plane `IN`, sum to
-    /// the same normalisation in the same order).
+    /// border's zeros add nothing, and plane `SUM` holds the same normalisation, summed in the
+    /// same order).
     fn inverse_sigmas(&mut self, sigma_l: f32) {
-        let (fg, g) = (self.fixed, self.moving);
+        let (fg, g, sg) = (self.fixed, self.moving, self.sigma);
         let w = g.width;
         let (current, statics) = (&self.current, &self.statics);
-        g.for_rows(&mut self.next, |y, row| {
-            let mut acc = [vec![0.0f32; w], vec![0.0f32; w]];
-            let mut sum = vec![0.0f32; w];
-            for dy in -1..=1i64 {
-                for dx in -1..=1i64 {
-                    let k = [0.25, 0.125][(dx.abs() + dy.abs()).min(1) as usize]
-                        * if dx != 0 && dy != 0 { 0.5 } else { 1.0 };
-                    let inside = &statics[fg.at(dx, y + dy, IN)..][..w];
-                    for (s, a) in sum.iter_mut().zip(inside) {
-                        *s += k * a;
-                    }
-                    for (sig, a) in acc.iter_mut().enumerate() {
-                        let v = &current[g.at(dx, y + dy, V + sig)..][..w];
-                        for (a, v) in a.iter_mut().zip(v) {
-                            *a += v * k;
-                        }
+        sg.for_rows(&mut self.sigmas, |y, row| {
+            let sum = &statics[fg.at(0, y, SUM)..][..w];
+            for sig in 0..SIGMAS {
+                let out = &mut row[sig * sg.pitch + sg.pad..][..w];
+                out.fill(0.0);
+                for &(dx, dy, k) in &BLUR {
+                    let v = &current[g.at(dx, y + dy, V + sig)..][..w];
+                    for (a, v) in out.iter_mut().zip(v) {
+                        *a += v * k;
                     }
                 }
-            }
-            for (sig, a) in acc.iter().enumerate() {
-                let out = &mut row[(INV + sig) * g.pitch + g.pad..][..w];
-                for ((o, a), s) in out.iter_mut().zip(a).zip(&sum) {
-                    *o = 1.0 / (sigma_l * (a / s).sqrt() + 1e-4);
+                for (o, s) in out.iter_mut().zip(sum) {
+                    *o = 1.0 / (sigma_l * (*o / s).sqrt() + 1e-4);
                 }
             }
         });
-        let (next, current) = (&self.next, &mut self.current);
-        current
-            .par_chunks_mut(g.row())
-            .zip(next.par_chunks(g.row()))
-            .for_each(|(c, n)| {
-                let r = INV * g.pitch..(INV + 2) * g.pitch;
-                c[r.clone()].copy_from_slice(&n[r]);
-            });
     }
 }
 
 struct Pass<'a> {
     fixed: Grid,
     moving: Grid,
+    sigma: Grid,
+    sigmas: &'a [f32],
     statics: &'a [f32],
     current: &'a [f32],
     step: i64,
@@ -335,7 +345,7 @@ impl Pass<'_> {
         let gz = st(G, x0, y);
         let nc = [st(NX, x0, y), st(NX + 1, x0, y), st(NX + 2, x0, y)];
         let lc = [dy(LUM, x0, y), dy(LUM + 1, x0, y)];
-        let inv = [dy(INV, x0, y), dy(INV + 1, x0, y)];
+        let inv = [0, 1].map(|s| Self::lanes(self.sigmas, self.sigma.at(x0, y, s)));
         // The centre tap: the kernel's weight whatever the tests say.
         let kc = H[0] * H[0];
         let mut s = Sums::default();

@@ -359,6 +359,8 @@ struct Scratch {
     buckets: Vec<u8>,
     /// Normalised current colours (3 planes).
     colours: Vec<f32>,
+    /// The weighted squared distances of one own sample to every member.
+    distance: Vec<f32>,
 }
 
 struct Context<'a> {
@@ -415,13 +417,13 @@ impl Context<'_> {
         let vector = |i: usize| &self.clean[i * d..(i + 1) * d];
 
         // 1. The neighbourhood.
-        let own: Vec<usize> = (0..spp).map(|s| pixel * spp + s).collect();
+        let own = pixel * spp..(pixel + 1) * spp;
         let stats: Vec<(f32, f32)> = (0..nf)
-            .map(|k| mean_std(own.iter().map(|&i| vector(i)[f0 + k])))
+            .map(|k| mean_std(own.clone().map(|i| vector(i)[f0 + k])))
             .collect();
         let members = &mut scratch.members;
         members.clear();
-        members.extend(own.iter().map(|&i| i as u32));
+        members.extend(own.map(|i| i as u32));
         let b = b as usize;
         let half = (b / 2) as i64;
         scratch.taken.clear();
@@ -557,12 +559,12 @@ impl Context<'_> {
                 *o = (value(j) - m) * inv;
             }
         }
-        let colours = &scratch.colours;
-        let normalised = &scratch.normalised;
-        let mut distance = vec![0.0f32; n];
+        let (colours, normalised) = (&scratch.colours, &scratch.normalised);
+        let distance = &mut scratch.distance;
         for (s, out) in out.iter_mut().enumerate() {
             // Own sample s is member s.
-            distance.iter_mut().for_each(|v| *v = 0.0);
+            distance.clear();
+            distance.resize(n, 0.0);
             for k in 0..3 {
                 let p = &colours[k * n..(k + 1) * n];
                 let (ci, a) = (p[s], alpha[k]);

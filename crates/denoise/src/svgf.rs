@@ -38,7 +38,7 @@ use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::atrous::{normal_weight, Inputs, Planes, MAX_PAD};
+use crate::atrous::{normal_weight, Inputs, Planes, BLUR, MAX_PAD};
 use crate::exp::{exp_neg, Plain};
 use crate::features::demodulator;
 use crate::FilterError;
@@ -367,19 +367,15 @@ impl Svgf {
         let blurred = |x: i64, y: i64| -> [f32; 2] {
             let mut acc = [0.0f32; 2];
             let mut sum = 0.0;
-            for dy in -1..=1i64 {
-                for dx in -1..=1i64 {
-                    let (qx, qy) = (x + dx, y + dy);
-                    if qx < 0 || qy < 0 || qx >= w || qy >= h {
-                        continue;
-                    }
-                    let k = [0.25, 0.125][(dx.abs() + dy.abs()).min(1) as usize]
-                        * if dx != 0 && dy != 0 { 0.5 } else { 1.0 };
-                    let v = variance[(qy * w + qx) as usize];
-                    acc[0] += v[0] * k;
-                    acc[1] += v[1] * k;
-                    sum += k;
+            for &(dx, dy, k) in &BLUR {
+                let (qx, qy) = (x + dx, y + dy);
+                if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                    continue;
                 }
+                let v = variance[(qy * w + qx) as usize];
+                acc[0] += v[0] * k;
+                acc[1] += v[1] * k;
+                sum += k;
             }
             acc.map(|a| a / sum)
         };

@@ -17,7 +17,7 @@ use crate::surface::{offset_origin, Shading, Surface};
 use crate::world::World;
 
 /// Sampler dimensions used by the camera (film jitter and lens).
-pub(crate) const CAMERA_DIMENSIONS: u32 = 4;
+const CAMERA_DIMENSIONS: u32 = 4;
 /// Sampler dimensions used per path vertex: light choice, light point (2), lobe, direction (2),
 /// Russian roulette, and one spare so that each vertex starts a fresh set of four.
 const VERTEX_DIMENSIONS: u32 = 8;
@@ -88,6 +88,9 @@ impl Vertex {
 #[derive(Debug, Clone)]
 pub struct CameraSample {
     pub ray: Ray,
+    /// The point on the film (pixels) and on the lens ([0, 1)^2) the ray comes from.
+    pub film: Vec2,
+    pub lens: Vec2,
     pub sampler: PixelSampler,
     pub rng: Rng,
 }
@@ -145,6 +148,7 @@ impl PathTracer<'_> {
             ray,
             sampler,
             mut rng,
+            ..
         } = self.camera_sample(x, y, index);
         let mut rays = 0;
         let first = self.intersect(ray, &mut rng, &mut rays);
@@ -162,6 +166,8 @@ impl PathTracer<'_> {
         let lens = sampler.next_2d();
         CameraSample {
             ray: self.camera.primary_ray(film, lens),
+            film,
+            lens,
             sampler,
             // Only cut-out (alpha) surfaces draw from this stream: without any, skip hashing.
             rng: if self.world.has_alpha {

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::config::Config;
-use crate::path::{CameraSample, PathTracer, CAMERA_DIMENSIONS};
+use crate::path::{CameraSample, PathTracer};
 use crate::world::World;
 
 /// Random parameters per sample vector.
@@ -78,25 +78,23 @@ pub fn trace(
 
 /// Sample `index` of pixel (`x`, `y`), as [`PathTracer::sample_pixel`] traces it, into `v`.
 fn fill(tracer: &PathTracer, x: u32, y: u32, index: u32, v: &mut [f32]) {
-    // The camera's two draws (film jitter, lens), as `camera_sample` takes them.
-    let mut sampler = tracer.pixel_sampler(x, y, index);
-    let jitter = sampler.next_2d();
-    let lens = sampler.next_2d();
-    // The first vertex's light sample (`trace_lit`'s first draws there).
-    sampler.set_dimension(CAMERA_DIMENSIONS);
-    let light = sampler.next_1d();
-    let point = sampler.next_2d();
     let CameraSample {
         ray,
+        film,
+        lens,
         sampler,
         mut rng,
     } = tracer.camera_sample(x, y, index);
+    // The first vertex's light sample (`trace_lit`'s first draws, where the camera's end).
+    let mut light_sampler = sampler.clone();
+    let light = light_sampler.next_1d();
+    let point = light_sampler.next_2d();
     let mut rays = 0;
     let first = tracer.intersect(ray, &mut rng, &mut rays);
     let sample = tracer.trace_from::<false>(ray, first.as_ref(), sampler, rng);
     let p1 = first.as_ref().map_or(Vec3::ZERO, |f| f.surface.p);
     let b = &sample.bounce;
-    let values = [x as f32 + jitter.x, y as f32 + jitter.y, lens.x, lens.y]
+    let values = [film.x, film.y, lens.x, lens.y]
         .into_iter()
         .chain(b.direction.to_array())
         .chain([light, point.x, point.y])

@@ -106,6 +106,7 @@ pub fn primary(
         ray,
         mut rng,
         sampler,
+        ..
     } = sample;
     let mut rays = 0;
     let first = tracer.intersect_from(ray, hit, &mut rng, &mut rays);
