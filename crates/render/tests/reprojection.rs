@@ -207,7 +207,7 @@ fn mirrors_glass_hidden_points_and_view_dependent_gloss_are_not_carried() {
             .slots
             .current
             .iter()
-            .filter(|s| s.stats.n > 0 && s.specular)
+            .filter(|s| s.stats.n > 0 && s.is_specular())
             .count() as u64;
         assert!(
             specular_states > 50,
@@ -224,14 +224,14 @@ fn mirrors_glass_hidden_points_and_view_dependent_gloss_are_not_carried() {
             "{report:?}"
         );
         assert!(
-            slots.iter().all(|s| s.stats.n == 0 || !s.specular),
+            slots.iter().all(|s| s.stats.n == 0 || !s.is_specular()),
             "a specular state was carried"
         );
         assert!(report.occluded > 10, "{report:?}");
         // (States on the wall: the occluder's own are in front of it.)
         for s in slots
             .iter()
-            .filter(|s| s.stats.n > 0 && !s.sky && s.point.z < 0.1)
+            .filter(|s| s.stats.n > 0 && !s.is_sky() && s.point.z < 0.1)
         {
             assert!(
                 !behind_occluder(eye, s.point),

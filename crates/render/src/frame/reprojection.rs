@@ -204,55 +204,132 @@ impl ReprojectionConfig {
 /// Largest `fresh_spp`.
 pub const MAX_FRESH_SPP: u32 = 256;
 
-/// One reprojection state: a share of a pixel's samples and what the checks need.
+/// One reprojection state: a share of a pixel's samples and what the checks need, packed
+/// (124 bytes instead of 144: the passes that move the states are bound by memory traffic):
+/// what only Eq. 15 reads (the first bounce's direction in 32-bit octahedral form, the base
+/// colour and the lobe's parameters as 16-bit fractions of 1) and the booleans as bits. The
+/// precision lost is far below what the test resolves (the direction to about 1e-4 radians,
+/// the rest to 1.5e-5). The normal, which the aliasing test reads at every pixel of every
+/// frame, stays as it is (decoding it there cost more than its bytes).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Slot {
     /// The samples (empty: `stats.n == 0`).
     pub stats: PixelStats,
     /// World position of the first sample's first hit; for the sky, the unit direction.
     pub point: Vec3,
-    /// Unit shading normal there, facing the camera that saw it.
-    pub normal: Vec3,
-    /// `L`: the unit direction the first sample left the first hit in (zero where it ended).
-    pub direction: Vec3,
-    /// `A`: the base colour at the first hit.
-    pub albedo: Vec3,
     /// `I`: the radiance arriving along `L`, averaged over the slot's samples.
     pub irradiance: Vec3,
-    /// Beckmann alpha (glTF roughness squared).
-    pub alpha: f32,
-    /// Specular reflectance at normal incidence (the dielectric layer's F0 blended to 1 by
-    /// metallic).
-    pub f0: f32,
-    /// Specular reflectance at grazing incidence (the dielectric layer's `specular` weight
-    /// blended to 1 by metallic; 0: no specular lobe, a Lambertian surface).
-    pub f90: f32,
-    /// The state saw the environment (`point` is a direction).
-    pub sky: bool,
-    /// Never reprojected: a specular lobe with alpha < 0.01, or transmitting.
-    pub specular: bool,
     /// The material at the first hit ([`NO_MATERIAL`](super::gbuffer::NO_MATERIAL): sky).
     pub material: u32,
-    /// Never reprojected: its samples saw more than one surface (another material, or a
-    /// point off this one's tangent plane): a mix that belongs to its old footprint.
-    pub mixed: bool,
-    /// Its samples came from another view (dropped when a new sample disagrees).
-    pub carried: bool,
+    /// Unit shading normal there, facing the camera that saw it.
+    pub normal: Vec3,
+    /// `L`: the unit direction the first sample left the first hit in (octahedral; the
+    /// [`ENDED`] bit where it ended there).
+    direction: u32,
+    /// `A`: the base colour at the first hit (clamped to [0, 1]).
+    albedo: [u16; 3],
+    /// The specular lobe: Beckmann alpha (glTF roughness squared); the reflectance at normal
+    /// incidence (the dielectric layer's F0 blended to 1 by metallic); at grazing incidence
+    /// (the layer's `specular` weight blended to 1 by metallic; 0: no lobe, Lambertian).
+    lobe: [u16; 3],
+    /// [`SKY`], [`SPECULAR`], [`MIXED`], [`CARRIED`], [`ENDED`].
+    flags: u8,
 }
+
+/// The state saw the environment (`point` is a direction).
+const SKY: u8 = 1;
+/// Never reprojected: a specular lobe with alpha < 0.01, or transmitting.
+const SPECULAR: u8 = 2;
+/// Never reprojected: its samples saw more than one surface (another material, or a point
+/// off this one's tangent plane): a mix that belongs to its old footprint.
+const MIXED: u8 = 4;
+/// Its samples came from another view (dropped when a new sample disagrees).
+const CARRIED: u8 = 8;
+/// The first sample's path ended at the first hit (`L` is zero).
+const ENDED: u8 = 16;
 
 /// Alpha below which a surface counts as specular (the thesis's 0.01).
 pub const SPECULAR_ALPHA: f32 = 0.01;
 
+/// `v` in [0, 1] as a 16-bit fraction.
+#[inline]
+fn unorm(v: f32) -> u16 {
+    (v.clamp(0.0, 1.0) * 65535.0).round() as u16
+}
+
+#[inline]
+fn from_unorm(v: u16) -> f32 {
+    f32::from(v) * (1.0 / 65535.0)
+}
+
+/// A unit vector in octahedral form (Cigolle et al. 2014), 16 bits per coordinate.
+#[inline]
+fn octahedral(v: Vec3) -> u32 {
+    let v = v / (v.x.abs() + v.y.abs() + v.z.abs());
+    let (x, y) = if v.z >= 0.0 {
+        (v.x, v.y)
+    } else {
+        (
+            (1.0 - v.y.abs()) * v.x.signum(),
+            (1.0 - v.x.abs()) * v.y.signum(),
+        )
+    };
+    let snorm = |c: f32| {
+        let c = if c.is_nan() { 0.0 } else { c };
+        ((c.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32
+    };
+    snorm(x) | (snorm(y) << 16)
+}
+
+#[inline]
+fn from_octahedral(e: u32) -> Vec3 {
+    let snorm = |b: u32| f32::from(b as u16 as i16) * (1.0 / 32767.0);
+    let (x, y) = (snorm(e), snorm(e >> 16));
+    let z = 1.0 - x.abs() - y.abs();
+    let t = (-z).max(0.0);
+    Vec3::new(x - t.copysign(x), y - t.copysign(y), z).normalize_or_zero()
+}
+
 impl Slot {
+    /// A state on a surface (empty of samples): first hit `point` with unit normal
+    /// `normal`, first bounce `direction` (zero: the path ended), base colour `albedo`, and
+    /// the specular lobe's `alpha`, `f0` and `f90`.
+    pub fn surface(
+        point: Vec3,
+        normal: Vec3,
+        direction: Vec3,
+        albedo: Vec3,
+        [alpha, f0, f90]: [f32; 3],
+        material: u32,
+    ) -> Self {
+        let ended = direction == Vec3::ZERO || !direction.is_finite();
+        Slot {
+            point,
+            material,
+            normal,
+            direction: if ended { 0 } else { octahedral(direction) },
+            albedo: albedo.to_array().map(unorm),
+            lobe: [alpha, f0, f90].map(unorm),
+            flags: if ended { ENDED } else { 0 },
+            ..Slot::default()
+        }
+    }
+
+    /// A state that saw the environment in direction `direction` (empty of samples).
+    pub fn sky(direction: Vec3, material: u32) -> Self {
+        Slot {
+            point: direction,
+            material,
+            flags: SKY,
+            ..Slot::default()
+        }
+    }
+
     /// A state started by a frame's first sample: G-buffer pixel `g`, its first bounce and
     /// its material (none for the sky, whose direction the caller sets).
     pub fn start(g: &GPixel, bounce: &Bounce, material: Option<&Material>) -> Self {
         let Some(m) = material.filter(|_| !g.is_sky()) else {
-            return Slot {
-                sky: true,
-                material: g.material,
-                ..Slot::default()
-            };
+            return Slot::sky(Vec3::ZERO, g.material);
         };
         let alpha = g.roughness.clamp(0.0, 1.0).powi(2);
         // As the BSDF's dielectric layer (`bsdf` module docs), reduced to one channel.
@@ -261,29 +338,84 @@ impl Slot {
             (f0_from_ior(m.ior) * m.specular_color.max_element().max(0.0)).min(1.0) * weight;
         let metallic = g.metallic.clamp(0.0, 1.0);
         let f90 = weight + (1.0 - weight) * metallic;
-        Slot {
-            stats: PixelStats::default(),
-            point: g.position,
-            normal: g.normal,
-            direction: bounce.direction,
-            albedo: g.albedo,
-            irradiance: Vec3::ZERO,
-            alpha,
-            f0: (dielectric + (1.0 - dielectric) * metallic).clamp(0.0, 1.0),
-            f90,
-            sky: false,
-            specular: (f90 > 0.0 && alpha < SPECULAR_ALPHA) || m.transmission > 0.0,
-            material: g.material,
-            mixed: false,
-            carried: false,
+        let f0 = (dielectric + (1.0 - dielectric) * metallic).clamp(0.0, 1.0);
+        let mut slot = Slot::surface(
+            g.position,
+            g.normal,
+            bounce.direction,
+            g.albedo,
+            [alpha, f0, f90],
+            g.material,
+        );
+        slot.set(
+            SPECULAR,
+            (f90 > 0.0 && alpha < SPECULAR_ALPHA) || m.transmission > 0.0,
+        );
+        slot
+    }
+
+    #[inline]
+    fn has(&self, flag: u8) -> bool {
+        self.flags & flag != 0
+    }
+
+    #[inline]
+    fn set(&mut self, flag: u8, on: bool) {
+        if on {
+            self.flags |= flag;
+        } else {
+            self.flags &= !flag;
         }
     }
 
-    /// Whether a sample with first hit `g` saw this state's surface (`tolerance`: as the
-    /// aliasing test's).
+    /// The state saw the environment (`point` is a direction).
+    pub fn is_sky(&self) -> bool {
+        self.has(SKY)
+    }
+
+    /// Never reprojected: a specular lobe with alpha < 0.01, or transmitting.
+    pub fn is_specular(&self) -> bool {
+        self.has(SPECULAR)
+    }
+
+    /// Never reprojected: its samples saw more than one surface.
+    pub fn is_mixed(&self) -> bool {
+        self.has(MIXED)
+    }
+
+    /// Its samples came from another view.
+    pub fn is_carried(&self) -> bool {
+        self.has(CARRIED)
+    }
+
+    /// `L`: the unit direction the first sample left the first hit in (zero where it ended).
+    pub fn direction(&self) -> Vec3 {
+        if self.has(ENDED) {
+            Vec3::ZERO
+        } else {
+            from_octahedral(self.direction)
+        }
+    }
+
+    /// `A`: the base colour at the first hit.
+    pub fn albedo(&self) -> Vec3 {
+        Vec3::from_array(self.albedo.map(from_unorm))
+    }
+
+    /// The specular lobe: alpha, reflectance at normal and at grazing incidence.
+    pub fn lobe(&self) -> [f32; 3] {
+        self.lobe.map(from_unorm)
+    }
+
+    /// The plane the aliasing test compares new hits with.
     #[inline]
-    fn agrees(&self, g: &GPixel, tolerance: f32) -> bool {
-        g.material == self.material && same_surface(self, g, tolerance)
+    fn plane(&self) -> Plane {
+        Plane {
+            point: self.point,
+            normal: self.normal,
+            material: self.material,
+            sky: self.is_sky(),
+        }
     }
 
     /// Adds a frame's samples (`l.stats`) and the radiance along their first bounce.
@@ -293,6 +425,34 @@ impl Slot {
         let w = l.stats.n as f32 / n as f32;
         self.irradiance += (l.bounce.radiance - self.irradiance) * w;
         self.stats.merge(&l.stats);
+    }
+}
+
+/// What the aliasing test needs of a state, unpacked once for the pixels it is compared with.
+#[derive(Debug, Clone, Copy)]
+struct Plane {
+    point: Vec3,
+    normal: Vec3,
+    material: u32,
+    sky: bool,
+}
+
+impl Plane {
+    /// Whether a sample with first hit `g` saw this surface (`tolerance`: as the aliasing
+    /// test's).
+    #[inline]
+    fn agrees(&self, g: &GPixel, tolerance: f32) -> bool {
+        g.material == self.material && self.same_surface(g, tolerance)
+    }
+
+    /// The aliasing depth test: whether the new camera ray through the pixel (G-buffer pixel
+    /// `g`) sees this surface.
+    #[inline]
+    fn same_surface(&self, g: &GPixel, tolerance: f32) -> bool {
+        if self.sky || g.is_sky() {
+            return self.sky && g.is_sky();
+        }
+        (g.position - self.point).dot(self.normal).abs() <= tolerance * g.depth
     }
 }
 
@@ -327,32 +487,22 @@ pub fn reflection(i: Vec3, o: Vec3, n: Vec3, alpha: f32, f0: f32, f90: f32) -> f
 /// Eq. 15: the view-dependency error of moving `slot` from a camera at `from` to one at `to`,
 /// the largest channel of `|f_r(V_t, L, N) - f_r(V_{t-1}, L, N)| A I` (0 for the sky).
 pub fn view_error(slot: &Slot, from: Vec3, to: Vec3) -> f32 {
-    if slot.sky || slot.f90 <= 0.0 || from == to {
+    let [alpha, f0, f90] = slot.lobe();
+    if slot.is_sky() || f90 <= 0.0 || from == to {
         return 0.0;
     }
+    let (direction, normal) = (slot.direction(), slot.normal);
     let view = |eye: Vec3| (eye - slot.point).normalize_or_zero();
-    let f = |v: Vec3| {
-        reflection(
-            v,
-            slot.direction,
-            slot.normal,
-            slot.alpha,
-            slot.f0,
-            slot.f90,
-        )
-    };
+    let f = |v: Vec3| reflection(v, direction, normal, alpha, f0, f90);
     let df = (f(view(to)) - f(view(from))).abs();
-    (slot.albedo * slot.irradiance * df).max_element()
+    (slot.albedo() * slot.irradiance * df).max_element()
 }
 
 /// The aliasing depth test: whether the new camera ray through the pixel (G-buffer pixel `g`)
 /// sees the surface of `slot`'s stored point.
 #[inline]
 pub fn same_surface(slot: &Slot, g: &GPixel, tolerance: f32) -> bool {
-    if slot.sky || g.is_sky() {
-        return slot.sky && g.is_sky();
-    }
-    (g.position - slot.point).dot(slot.normal).abs() <= tolerance * g.depth
+    slot.plane().same_surface(g, tolerance)
 }
 
 /// What happened to a pixel's states at the last camera move (the `rejection` display mode):
@@ -462,6 +612,29 @@ pub struct Reprojection {
 
 const NO_CLAIM: u64 = u64::MAX;
 
+/// The source state of a claim, if any.
+#[inline]
+fn winner(claim: u64) -> Option<usize> {
+    (claim != NO_CLAIM).then_some((claim & 0xffff_ffff) as usize)
+}
+
+/// The state that moves to a target whose claim is `claim`: the winner, marked as carried,
+/// or an empty one.
+#[inline]
+fn moved(source: &[Slot], claim: u64) -> Slot {
+    match winner(claim) {
+        // Its point stays where it is: re-centred on the pixel it landed in, a state would
+        // lose the fraction of a pixel it moved at every step, and under small steps never
+        // move.
+        Some(j) => {
+            let mut slot = source[j];
+            slot.set(CARRIED, true);
+            slot
+        }
+        None => Slot::default(),
+    }
+}
+
 /// Pixels per parallel task of the passes here.
 const CHUNK: usize = 256;
 
@@ -483,19 +656,19 @@ fn merged<'a>(slots: impl IntoIterator<Item = &'a Slot>) -> PixelStats {
 }
 
 /// Whether the new camera rays through pixel `t` and its 8 neighbours (of `pixels`, `w`
-/// wide) all see `slot`'s surface (the aliasing test's criterion). A state that lands on a
+/// wide) all see `plane`'s surface (the aliasing test's criterion). A state that lands on a
 /// pixel next to another surface in the new view lies on one of its edges, where its
 /// footprint's single surface is not all the pixel sees. (The diagonal neighbours count: a
 /// surface that covers only a corner of the pixel reaches the diagonal neighbour's ray first.)
 #[inline]
-fn inside(slot: &Slot, pixels: &[GPixel], t: usize, w: usize, tolerance: f32) -> bool {
+fn inside(plane: &Plane, pixels: &[GPixel], t: usize, w: usize, tolerance: f32) -> bool {
     let rows = pixels.len() / w;
     let (x, y) = (t % w, t / w);
     let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
     (y.saturating_sub(1)..=(y + 1).min(rows - 1)).all(|v| {
         pixels[v * w + x0..=v * w + x1]
             .iter()
-            .all(|g| slot.agrees(g, tolerance))
+            .all(|g| plane.agrees(g, tolerance))
     })
 }
 
@@ -577,7 +750,7 @@ impl Reprojection {
                             continue;
                         }
                         r.states += 1;
-                        let film = if s.sky {
+                        let film = if s.is_sky() {
                             to.project_direction(s.point)
                         } else {
                             to.project(s.point)
@@ -589,12 +762,12 @@ impl Reprojection {
                             continue;
                         };
                         let t = f.y as usize * w + f.x as usize;
-                        if s.specular {
+                        if s.is_specular() {
                             mark(t, Fate::Specular);
                             r.specular += 1;
                             continue;
                         }
-                        if s.mixed {
+                        if s.is_mixed() {
                             mark(t, Fate::Mixed);
                             r.mixed += 1;
                             continue;
@@ -605,18 +778,29 @@ impl Reprojection {
                             r.view_error += 1;
                             continue;
                         }
-                        let (ray, distance) = occlusion_ray(eye_to, s, tolerance);
-                        let q = if k == 4 && !s.sky { quadrant(f) } else { 0 };
+                        let q = if k == 4 && !s.is_sky() {
+                            quadrant(f)
+                        } else {
+                            0
+                        };
+                        let distance = if trace_rays {
+                            let (ray, distance) = occlusion_ray(eye_to, s, tolerance);
+                            rays.push(ray);
+                            distance
+                        } else {
+                            eye_distance(eye_to, s)
+                        };
                         candidates.push((c * CHUNK + i, t, q, distance));
-                        rays.push(ray);
                     }
                     hits.clear();
-                    hits.resize(rays.len(), None);
+                    hits.resize(candidates.len(), None);
                     if trace_rays {
                         world.accel.intersect_batch(rays, hits);
                     }
-                    for (&(j, t, q, distance), hit) in candidates.iter().zip(hits.iter()) {
-                        if hit.is_some() {
+                    for (&(j, t, q, distance), hit) in
+                        candidates.iter().zip(hits.iter().map(Option::is_some))
+                    {
+                        if hit {
                             mark(t, Fate::Occluded);
                             r.occluded += 1;
                         } else {
@@ -630,7 +814,8 @@ impl Reprojection {
             )
             .reduce(ReprojectionReport::default, ReprojectionReport::add);
 
-        // Each target takes its winning states, and the largest probability they bring.
+        // Each target takes its winning states, and the largest probability they bring. The
+        // claims and marks are this pass's alone now: plain loads and stores, not locked swaps.
         self.probability.clear();
         self.probability.extend_from_slice(probability);
         let (source, before) = (&self.slots.current, &self.probability);
@@ -638,48 +823,42 @@ impl Reprojection {
             .slots
             .previous
             .par_chunks_mut(k * CHUNK)
+            .zip(self.claims.par_chunks_mut(k * CHUNK))
+            .zip(self.marks.par_chunks_mut(CHUNK))
             .zip(history.par_chunks_mut(CHUNK))
             .zip(probability.par_chunks_mut(CHUNK))
             .zip(self.fates.par_chunks_mut(CHUNK))
             .zip(self.kept.par_chunks_mut(CHUNK))
-            .enumerate()
-            .map(|(c, ((((targets, hist), prob), fates), kept))| {
-                let mut count = 0;
-                let pixels = hist
-                    .iter_mut()
-                    .zip(prob.iter_mut())
-                    .zip(fates.iter_mut().zip(kept));
-                for (p, (slots, ((h, prob), (fate, kept)))) in
-                    targets.chunks_mut(k).zip(pixels).enumerate()
-                {
-                    let t = c * CHUNK + p;
-                    let mut n = 0;
-                    *prob = NO_PROBABILITY;
-                    for (q, slot) in slots.iter_mut().enumerate() {
-                        let key = claims[t * k + q].swap(NO_CLAIM, Ordering::Relaxed);
-                        *slot = if key == NO_CLAIM {
-                            Slot::default()
-                        } else {
-                            n += 1;
-                            let j = (key & 0xffff_ffff) as usize;
-                            *prob = prob.max(before[j / k]);
-                            // Its point stays where it is: re-centred on the pixel it
-                            // landed in, a state would lose the fraction of a pixel it
-                            // moved at every step, and under small steps never move.
-                            Slot {
-                                carried: true,
-                                ..source[j]
+            .map(
+                |((((((targets, claims), marks), hist), prob), fates), kept)| {
+                    let mut count = 0;
+                    let pixels = hist
+                        .iter_mut()
+                        .zip(prob.iter_mut())
+                        .zip(fates.iter_mut().zip(kept))
+                        .zip(marks.iter_mut().zip(claims.chunks_mut(k)));
+                    for (slots, (((h, prob), (fate, kept)), (mark, claims))) in
+                        targets.chunks_mut(k).zip(pixels)
+                    {
+                        let mut n = 0;
+                        *prob = NO_PROBABILITY;
+                        for (slot, claim) in slots.iter_mut().zip(claims) {
+                            let claim = std::mem::replace(claim.get_mut(), NO_CLAIM);
+                            if let Some(j) = winner(claim) {
+                                n += 1;
+                                *prob = prob.max(before[j / k]);
                             }
-                        };
+                            *slot = moved(source, claim);
+                        }
+                        let mark = std::mem::take(mark.get_mut());
+                        *fate = if n > 0 { Fate::Kept as u8 } else { mark };
+                        *kept = n;
+                        *h = merged(slots.iter());
+                        count += n as u64;
                     }
-                    let mark = marks[t].swap(0, Ordering::Relaxed);
-                    *fate = if n > 0 { Fate::Kept as u8 } else { mark };
-                    *kept = n;
-                    *h = merged(slots.iter());
-                    count += n as u64;
-                }
-                count
-            })
+                    count
+                },
+            )
             .sum();
         self.slots.swap();
         report.collisions = report.kept - kept_states;
@@ -697,7 +876,7 @@ impl Reprojection {
         merged(
             self.slots.current[pixel * k..pixel * k + k]
                 .iter()
-                .filter(|s| s.stats.n > 0 && s.agrees(g, tolerance)),
+                .filter(|s| s.stats.n > 0 && s.plane().agrees(g, tolerance)),
         )
     }
 
@@ -754,18 +933,25 @@ impl Reprojection {
                 for (p, (slots, (((g, l), (h, prob)), (fate, kept)))) in
                     slots.chunks_mut(k).zip(pixels).enumerate()
                 {
-                    if after_move {
-                        let t = c * CHUNK + p;
-                        for s in slots.iter_mut() {
-                            if s.stats.n == 0 {
-                                continue;
-                            }
-                            let seen = s.agrees(g, tolerance);
-                            let edge = seen && !inside(s, &gbuffer.pixels, t, w, tolerance);
-                            if edge && l.stats.n == 0 {
+                    let t = c * CHUNK + p;
+                    let sampled = l.stats.n > 0;
+                    let q = if sampled && k == 4 && !g.is_sky() {
+                        camera.project(g.position).map_or(0, quadrant)
+                    } else {
+                        0
+                    };
+                    for (i, s) in slots.iter_mut().enumerate() {
+                        if s.stats.n == 0 {
+                            continue;
+                        }
+                        let plane = s.plane();
+                        let seen = plane.agrees(g, tolerance);
+                        if after_move {
+                            let edge = seen && !inside(&plane, &gbuffer.pixels, t, w, tolerance);
+                            if edge && !sampled {
                                 // Not sampled this frame (adaptive sampling): kept for now,
                                 // dropped by the pixel's next sample.
-                                s.mixed = true;
+                                s.set(MIXED, true);
                             } else if edge || !seen {
                                 *s = Slot::default();
                                 dropped += 1;
@@ -774,35 +960,33 @@ impl Reprojection {
                                     *fate = Fate::Aliasing as u8;
                                     *prob = NO_PROBABILITY;
                                 }
+                                continue;
                             }
                         }
-                    }
-                    if l.stats.n > 0 {
-                        let q = if k == 4 && !g.is_sky() {
-                            camera.project(g.position).map_or(0, quadrant)
-                        } else {
-                            0
-                        };
-                        // A carried state anywhere in the pixel that the sample disagrees
-                        // with: its old footprint's surface is not all this one sees (a
-                        // carried quarter's place in its new pixel is only approximate).
-                        for s in slots.iter_mut() {
-                            if s.carried && s.stats.n > 0 && (s.mixed || !s.agrees(g, tolerance)) {
+                        if !sampled {
+                            continue;
+                        }
+                        if s.is_carried() {
+                            // A carried state anywhere in the pixel that the sample disagrees
+                            // with: its old footprint's surface is not all this one sees (a
+                            // carried quarter's place in its new pixel is only approximate).
+                            if s.is_mixed() || !seen {
                                 *s = Slot::default();
                                 dropped += 1;
                             }
+                        } else if i == q && !seen {
+                            s.set(MIXED, true);
                         }
+                    }
+                    if sampled {
                         let s = &mut slots[q];
-                        if s.stats.n > 0 && !s.agrees(g, tolerance) {
-                            s.mixed = true;
-                        }
                         if s.stats.n == 0 {
-                            let film = centre(c * CHUNK + p, w, q, k);
+                            let film = centre(t, w, q, k);
                             *s = Slot::start(g, &l.bounce, materials.get(g.material as usize));
-                            s.point = if s.sky {
+                            s.point = if s.is_sky() {
                                 camera.primary_ray(film, Vec2::splat(0.5)).direction
                             } else {
-                                snap(camera, film, s.point, s.normal)
+                                snap(camera, film, s.point, g.normal)
                             };
                         }
                         s.add(l);
@@ -847,20 +1031,36 @@ fn centre(t: usize, w: usize, q: usize, k: usize) -> Vec2 {
     }
 }
 
+/// The distance from a camera at `eye` to `slot`'s stored point (infinite for the sky): the
+/// key by which the nearest of the states that land on one target wins.
+#[inline]
+fn eye_distance(eye: Vec3, slot: &Slot) -> f32 {
+    if slot.is_sky() {
+        return f32::INFINITY;
+    }
+    let distance = (slot.point - eye).length();
+    // At the eye (or not finite): nearest of all.
+    if distance > 0.0 {
+        distance
+    } else {
+        0.0
+    }
+}
+
 /// The ray from a camera at `eye` towards `slot`'s stored point (stopping `tolerance` of the
 /// distance short of it; for the sky, unbounded in its direction), and the distance (infinite
 /// for the sky). Anything it hits hides the point.
 #[inline]
 fn occlusion_ray(eye: Vec3, slot: &Slot, tolerance: f32) -> (Ray, f32) {
-    if slot.sky {
-        return (Ray::new(eye, slot.point), f32::INFINITY);
+    let distance = eye_distance(eye, slot);
+    if slot.is_sky() {
+        return (Ray::new(eye, slot.point), distance);
     }
-    let d = slot.point - eye;
-    let distance = d.length();
-    if distance.is_nan() || distance <= 0.0 {
+    if distance == 0.0 {
         // At the eye: nothing can hide it (an empty segment).
         return (Ray::segment(eye, Vec3::Z, 0.0, 0.0), 0.0);
     }
+    let d = slot.point - eye;
     let ray = Ray::segment(eye, d / distance, 0.0, distance * (1.0 - tolerance));
     (ray, distance)
 }
@@ -874,15 +1074,50 @@ mod tests {
     fn slot(f0: f32, f90: f32, alpha: f32) -> Slot {
         Slot {
             stats: PixelStats::one(Vec3::ONE, Vec3::ZERO),
-            normal: Vec3::Z,
-            direction: Vec3::new(0.3, 0.0, 1.0).normalize(),
-            albedo: Vec3::ONE,
             irradiance: Vec3::ONE,
-            alpha,
-            f0,
-            f90,
-            ..Slot::default()
+            ..Slot::surface(
+                Vec3::ZERO,
+                Vec3::Z,
+                Vec3::new(0.3, 0.0, 1.0).normalize(),
+                Vec3::ONE,
+                [alpha, f0, f90],
+                0,
+            )
         }
+    }
+
+    #[test]
+    fn packed_fields_read_back_within_their_precision() {
+        let mut rng = Rng::new(11, 0);
+        for _ in 0..10_000 {
+            let v = Vec3::new(
+                rng.next_f32() * 2.0 - 1.0,
+                rng.next_f32() * 2.0 - 1.0,
+                rng.next_f32() * 2.0 - 1.0,
+            );
+            if v.length() < 1e-3 {
+                continue;
+            }
+            let v = v.normalize();
+            let back = from_octahedral(octahedral(v));
+            // 16 bits per coordinate: within 1e-4 radians.
+            assert!((back - v).length() < 1e-4, "{v} read back as {back}");
+            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+            let s = Slot::surface(Vec3::ONE, v, -v, Vec3::from_array(u), u, 3);
+            let (albedo, lobe) = (s.albedo().to_array(), s.lobe());
+            for i in 0..3 {
+                assert!((albedo[i] - u[i]).abs() <= 1.0 / 131_070.0 + 1e-7);
+                assert!((lobe[i] - u[i]).abs() <= 1.0 / 131_070.0 + 1e-7);
+            }
+            assert!((s.direction() + v).length() < 1e-4);
+        }
+        // The axes and their opposites exactly; a path that ended keeps no direction.
+        for v in [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z] {
+            assert_eq!(from_octahedral(octahedral(v)), v);
+        }
+        let ended = Slot::surface(Vec3::ZERO, Vec3::Z, Vec3::ZERO, Vec3::ONE, [0.5; 3], 0);
+        assert_eq!(ended.direction(), Vec3::ZERO);
+        assert!(!ended.is_sky() && !ended.is_specular() && !ended.is_carried());
     }
 
     #[test]
@@ -941,10 +1176,8 @@ mod tests {
         assert!(view_error(&glossy, a, b) > 1.0 / 256.0);
         // Lambertian (no specular layer): view independent.
         assert_eq!(view_error(&slot(0.0, 0.0, 0.1), a, b), 0.0);
-        let sky = Slot {
-            sky: true,
-            ..glossy
-        };
+        let mut sky = glossy;
+        sky.set(SKY, true);
         assert_eq!(view_error(&sky, a, b), 0.0);
         // Scales with what arrives along L and the base colour.
         let dim = Slot {
@@ -979,13 +1212,13 @@ mod tests {
             roughness: 0.5,
             ..Material::default()
         };
-        assert!(!Slot::start(&g(0.0, 0.0), &bounce, Some(&lambert)).specular);
+        assert!(!Slot::start(&g(0.0, 0.0), &bounce, Some(&lambert)).is_specular());
         assert!(
-            Slot::start(&g(0.0, 1.0), &bounce, Some(&lambert)).specular,
+            Slot::start(&g(0.0, 1.0), &bounce, Some(&lambert)).is_specular(),
             "a mirror"
         );
-        assert!(Slot::start(&g(0.05, 0.0), &bounce, Some(&plastic)).specular);
-        assert!(!Slot::start(&g(0.2, 0.0), &bounce, Some(&plastic)).specular);
-        assert!(Slot::start(&g(0.5, 0.0), &bounce, Some(&glass)).specular);
+        assert!(Slot::start(&g(0.05, 0.0), &bounce, Some(&plastic)).is_specular());
+        assert!(!Slot::start(&g(0.2, 0.0), &bounce, Some(&plastic)).is_specular());
+        assert!(Slot::start(&g(0.5, 0.0), &bounce, Some(&glass)).is_specular());
     }
 }
