@@ -133,15 +133,19 @@ fn svgf(c: &mut Criterion) {
         let mut out = vec![Vec3::ZERO; n];
         let mut group = c.benchmark_group(format!("svgf {w}x{h}"));
         group.sample_size(20);
-        for scalar in [false, true] {
+        for (scalar, kernel) in [(false, 5), (true, 5), (false, 3)] {
             let mut svgf = Svgf::new();
             svgf.set_scalar(scalar);
             for _ in 0..40 {
-                svgf.filter(&frame, 5, &mut out).unwrap();
+                svgf.filter(&frame, 5, kernel, &mut out).unwrap();
             }
-            let name = if scalar { "scalar" } else { "vectorised" };
+            let name = match (scalar, kernel) {
+                (true, _) => "scalar",
+                (false, 5) => "vectorised",
+                _ => "vectorised 3x3",
+            };
             group.bench_function(name, |b| {
-                b.iter(|| svgf.filter(&frame, 5, &mut out).unwrap())
+                b.iter(|| svgf.filter(&frame, 5, kernel, &mut out).unwrap())
             });
         }
         group.finish();

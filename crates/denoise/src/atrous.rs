@@ -20,8 +20,16 @@ type Lanes = [f32; LANES];
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
 
-/// The B3-spline's 1D weights at offsets 0, 1, 2.
-const H: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+/// The 1D weights at offsets 0, 1, 2 of the a-trous kernel `kernel` pixels wide: the B3
+/// spline of the paper (5), or the linear B-spline `1/4, 1/2, 1/4` (3: a third of the taps, as
+/// several real-time implementations use; not in the paper).
+pub fn spline(kernel: u32) -> [f32; 3] {
+    if kernel == 3 {
+        [0.5, 0.25, 0.0]
+    } else {
+        [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0]
+    }
+}
 
 // Static planes (per frame).
 const Z: usize = 0;
@@ -201,9 +209,11 @@ impl Planes {
         }));
     }
 
-    /// One pass with holes of `step` pixels: `current` filtered into `next`, then swapped.
+    /// One pass of a kernel `kernel` pixels wide (3 or 5) with holes of `step` pixels:
+    /// `current` filtered into `next`, then swapped.
     pub fn pass(
         &mut self,
+        kernel: u32,
         step: usize,
         sigma_l: f32,
         sigma_z: f32,
@@ -221,6 +231,7 @@ impl Planes {
             current: &self.current,
             step: step as i64,
             sigma_z,
+            wide: kernel != 3,
         };
         g.for_rows(&mut self.next, |y, row| pass.row(y, row, through));
         std::mem::swap(&mut self.current, &mut self.next);
@@ -262,6 +273,8 @@ struct Pass<'a> {
     current: &'a [f32],
     step: i64,
     sigma_z: f32,
+    /// The 5x5 kernel (else 3x3).
+    wide: bool,
 }
 
 /// The weighted sums of 8 centre pixels.
@@ -320,15 +333,25 @@ impl Pass<'_> {
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
             // SAFETY: the processor has AVX2 and FMA (checked just above).
-            return unsafe { self.group_avx2(x0, y) };
+            return unsafe {
+                if self.wide {
+                    self.group_avx2::<2>(x0, y)
+                } else {
+                    self.group_avx2::<1>(x0, y)
+                }
+            };
         }
-        self.group_lanes::<Plain>(x0, y)
+        if self.wide {
+            self.group_lanes::<Plain, 2>(x0, y)
+        } else {
+            self.group_lanes::<Plain, 1>(x0, y)
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn group_avx2(&self, x0: i64, y: i64) -> Sums {
-        self.group_lanes::<crate::exp::Fused>(x0, y)
+    fn group_avx2<const R: i64>(&self, x0: i64, y: i64) -> Sums {
+        self.group_lanes::<crate::exp::Fused, R>(x0, y)
     }
 
     #[inline(always)]
@@ -336,8 +359,10 @@ impl Pass<'_> {
         buffer[at..at + LANES].try_into().expect("8 lanes")
     }
 
+    /// The sums of a kernel of radius `R` (1: 3x3, 2: 5x5).
     #[inline(always)]
-    fn group_lanes<M: MulAdd>(&self, x0: i64, y: i64) -> Sums {
+    fn group_lanes<M: MulAdd, const R: i64>(&self, x0: i64, y: i64) -> Sums {
+        let h = spline(2 * R as u32 + 1);
         let (fg, mg) = (self.fixed, self.moving);
         let st = |p: usize, x: i64, y: i64| Self::lanes(self.statics, fg.at(x, y, p));
         let dy = |p: usize, x: i64, y: i64| Self::lanes(self.current, mg.at(x, y, p));
@@ -347,7 +372,7 @@ impl Pass<'_> {
         let lc = [dy(LUM, x0, y), dy(LUM + 1, x0, y)];
         let inv = [0, 1].map(|s| Self::lanes(self.sigmas, self.sigma.at(x0, y, s)));
         // The centre tap: the kernel's weight whatever the tests say.
-        let kc = H[0] * H[0];
+        let kc = h[0] * h[0];
         let mut s = Sums::default();
         for sig in 0..2 {
             s.w[sig] = [kc; LANES];
@@ -357,14 +382,15 @@ impl Pass<'_> {
             }
         }
         let step = self.step;
-        // The depth test's `1 / (sigma_z |grad z| |p - q| + 1e-4 z)` for the five distances
-        // the taps have (|k|^2 = 1, 2, 4, 5, 8).
-        let rz: [Lanes; 5] = std::array::from_fn(|d| {
+        // The depth test's `1 / (sigma_z |grad z| |p - q| + 1e-4 z)` for the distances the
+        // taps have (|k|^2 = 1, 2, and with the 5x5 kernel 4, 5, 8).
+        let mut rz = [[0.0f32; LANES]; 5];
+        for (d, rz) in rz.iter_mut().enumerate().take(if R == 1 { 2 } else { 5 }) {
             let distance = ([1.0f32, 2.0, 4.0, 5.0, 8.0][d]).sqrt() * step as f32;
-            std::array::from_fn(|j| 1.0 / (self.sigma_z * gz[j] * distance + 1e-4 * zc[j]))
-        });
-        for ky in -2..=2i64 {
-            for kx in -2..=2i64 {
+            *rz = std::array::from_fn(|j| 1.0 / (self.sigma_z * gz[j] * distance + 1e-4 * zc[j]));
+        }
+        for ky in -R..=R {
+            for kx in -R..=R {
                 if kx == 0 && ky == 0 {
                     continue;
                 }
@@ -376,7 +402,7 @@ impl Pass<'_> {
                     _ => 4,
                 }];
                 let (qx, qy) = (x0 + kx * step, y + ky * step);
-                let kernel = H[kx.unsigned_abs() as usize] * H[ky.unsigned_abs() as usize];
+                let kernel = h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize];
                 let zq = st(Z, qx, qy);
                 let nq = [st(NX, qx, qy), st(NX + 1, qx, qy), st(NX + 2, qx, qy)];
                 let lq = [dy(LUM, qx, qy), dy(LUM + 1, qx, qy)];

@@ -88,6 +88,9 @@ pub struct FilterConfig {
     pub holes: bool,
     /// SVGF: a-trous iterations.
     pub atrous_iterations: u32,
+    /// SVGF: the a-trous kernel's width, 5 (the paper's B3 spline) or 3 (the linear
+    /// B-spline: a third of the taps; not in the paper).
+    pub atrous_kernel: u32,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
     /// errors by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
@@ -125,6 +128,7 @@ impl Default for FilterConfig {
             kernel: 21,
             holes: false,
             atrous_iterations: 5,
+            atrous_kernel: 5,
             sigma_direct: 4.0,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -170,6 +174,9 @@ impl FilterConfig {
                 &self.atrous_iterations,
                 "from 1 to 16",
             );
+        }
+        if !matches!(self.atrous_kernel, 3 | 5) {
+            return bad("frame.filter.atrous_kernel", &self.atrous_kernel, "3 or 5");
         }
         for (field, v) in [
             ("frame.filter.sigma_direct", self.sigma_direct),
@@ -226,6 +233,7 @@ mod tests {
             ("sigma_normal", "nan"),
             ("variance_scale", "[1.0, -1.0, 1.0, 1.0, 1.0]"),
             ("atrous_iterations", "0"),
+            ("atrous_kernel", "4"),
             ("rpf_boxes", "[55, 34]"),
             ("rpf_noise", "0.0"),
         ] {

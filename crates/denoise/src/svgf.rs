@@ -10,7 +10,8 @@
 //! variance  moments, history length                -> luminance variance (temporal; a 7x7
 //!                                                    spatial estimate below 4 frames)
 //! a-trous   light, variance, depth, normal         -> filtered light (`iterations` 5x5
-//!                                                    B3-spline passes with holes of 1, 2, 4..;
+//!                                                    B3-spline passes, or 3x3 linear ones,
+//!                                                    with holes of 1, 2, 4..;
 //!                                                    the first one's output is the next
 //!                                                    frame's history, as in the paper)
 //! remodulate filtered light, albedo                -> image
@@ -38,7 +39,7 @@ use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::atrous::{normal_weight, Inputs, Planes, BLUR, MAX_PAD};
+use crate::atrous::{normal_weight, spline, Inputs, Planes, BLUR, MAX_PAD};
 use crate::exp::{exp_neg, Plain};
 use crate::features::demodulator;
 use crate::FilterError;
@@ -113,12 +114,13 @@ impl Svgf {
         self.length.clear();
     }
 
-    /// Filters `frame` with `iterations` a-trous passes into `out`, using and updating the
-    /// history.
+    /// Filters `frame` with `iterations` a-trous passes of a kernel `kernel` pixels wide (5,
+    /// the paper's, or 3) into `out`, using and updating the history.
     pub fn filter(
         &mut self,
         f: &SvgfFrame,
         iterations: u32,
+        kernel: u32,
         out: &mut [Vec3],
     ) -> Result<(), FilterError> {
         let n = f.width * f.height;
@@ -170,7 +172,7 @@ impl Svgf {
                 pad / 2,
             );
             for i in 0..iterations {
-                self.planes.pass(1 << i, SIGMA_L, SIGMA_Z, &through);
+                self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z, &through);
                 if i == 0 {
                     self.planes.light(&mut self.history);
                 }
@@ -178,7 +180,7 @@ impl Svgf {
             self.planes.light(&mut self.light);
         } else {
             for i in 0..iterations {
-                self.atrous(f, 1 << i);
+                self.atrous(f, kernel, 1 << i);
                 std::mem::swap(&mut self.light, &mut self.next_light);
                 std::mem::swap(&mut self.variance, &mut self.next_variance);
                 if i == 0 {
@@ -349,9 +351,11 @@ impl Svgf {
         });
     }
 
-    /// One a-trous pass with holes of `step` pixels, into `next_light` and `next_variance`.
-    fn atrous(&mut self, f: &SvgfFrame, step: i64) {
-        const H: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+    /// One a-trous pass of a kernel `kernel` pixels wide with holes of `step` pixels, into
+    /// `next_light` and `next_variance`.
+    fn atrous(&mut self, f: &SvgfFrame, kernel: u32, step: i64) {
+        let weights = spline(kernel);
+        let r = i64::from(kernel / 2);
         let n = f.width * f.height;
         self.next_light.resize(n, [Vec3::ZERO; 2]);
         self.next_variance.resize(n, [0.0; 2]);
@@ -395,8 +399,8 @@ impl Svgf {
                 let mut sum_w = [0.0f32; 2];
                 let mut acc = [Vec3::ZERO; 2];
                 let mut acc_v = [0.0f32; 2];
-                for ky in -2..=2i64 {
-                    for kx in -2..=2i64 {
+                for ky in -r..=r {
+                    for kx in -r..=r {
                         let (qx, qy) = (x + kx * step, y + ky * step);
                         if qx < 0 || qy < 0 || qx >= w || qy >= h {
                             continue;
@@ -405,7 +409,8 @@ impl Svgf {
                         if passes_through(f, q) {
                             continue;
                         }
-                        let kernel = H[kx.unsigned_abs() as usize] * H[ky.unsigned_abs() as usize];
+                        let kernel = weights[kx.unsigned_abs() as usize]
+                            * weights[ky.unsigned_abs() as usize];
                         let distance = ((kx * kx + ky * ky) as f32).sqrt() * step as f32;
                         let wz = -(f.depth[q] - f.depth[i]).abs()
                             / (SIGMA_Z * gradient[i] * distance + 1e-4 * f.depth[i]);

@@ -38,6 +38,11 @@ impl Frame {
     }
 
     fn run(&self, svgf: &mut Svgf) -> Vec<Vec3> {
+        self.run_with(svgf, 5)
+    }
+
+    /// With a-trous kernels `kernel` pixels wide.
+    fn run_with(&self, svgf: &mut Svgf, kernel: u32) -> Vec<Vec3> {
         let mut out = vec![Vec3::ZERO; self.w * self.h];
         svgf.filter(
             &SvgfFrame {
@@ -52,6 +57,7 @@ impl Frame {
                 emitter: &self.emitter,
             },
             5,
+            kernel,
             &mut out,
         )
         .unwrap();
@@ -80,19 +86,30 @@ fn mean_abs_diff(a: &[Vec3], b: &[Vec3]) -> f32 {
 #[test]
 fn a_constant_image_stays_constant() {
     let f = Frame::flat(40, 24, 0.3);
-    let mut svgf = Svgf::new();
-    for _ in 0..6 {
-        for o in f.run(&mut svgf) {
-            assert!((o - Vec3::splat(0.33)).abs().max_element() < 1e-5, "{o}");
+    for kernel in [5, 3] {
+        let mut svgf = Svgf::new();
+        for _ in 0..6 {
+            for o in f.run_with(&mut svgf, kernel) {
+                assert!((o - Vec3::splat(0.33)).abs().max_element() < 1e-5, "{o}");
+            }
         }
     }
 }
 
 #[test]
 fn a_still_wall_settles_with_fresh_noise_every_frame() {
+    for kernel in [5, 3] {
+        a_still_wall_settles(kernel);
+    }
+}
+
+fn a_still_wall_settles(kernel: u32) {
     let mut svgf = Svgf::new();
     let frames: Vec<Frame> = (0..40).map(noisy).collect();
-    let outputs: Vec<Vec<Vec3>> = frames.iter().map(|f| f.run(&mut svgf)).collect();
+    let outputs: Vec<Vec<Vec3>> = frames
+        .iter()
+        .map(|f| f.run_with(&mut svgf, kernel))
+        .collect();
     // Flicker over the last 10 frames, against the input's.
     let flicker = |v: &[Vec<Vec3>]| {
         (30..40)
@@ -111,7 +128,10 @@ fn a_still_wall_settles_with_fresh_noise_every_frame() {
         })
         .collect();
     let (input, output) = (flicker(&inputs), flicker(&outputs));
-    assert!(output * 10.0 < input, "flicker {output} vs input {input}");
+    assert!(
+        output * 10.0 < input,
+        "{kernel}x{kernel}: flicker {output} vs input {input}"
+    );
     // Around the right mean (0.5 + 0.05).
     let mean = outputs[39].iter().map(|o| o.x).sum::<f32>() / outputs[39].len() as f32;
     assert!((mean - 0.55).abs() < 0.01, "{mean}");
@@ -127,19 +147,21 @@ fn a_normal_edge_is_not_blurred_across() {
             f.indirect[y * 40 + x] = Vec3::splat(0.09);
         }
     }
-    let mut svgf = Svgf::new();
-    for _ in 0..3 {
-        let out = f.run(&mut svgf);
-        assert!(
-            (out[10 * 40 + 19].x - 0.22).abs() < 1e-3,
-            "{}",
-            out[10 * 40 + 19]
-        );
-        assert!(
-            (out[10 * 40 + 20].x - 0.99).abs() < 1e-3,
-            "{}",
-            out[10 * 40 + 20]
-        );
+    for kernel in [5, 3] {
+        let mut svgf = Svgf::new();
+        for _ in 0..3 {
+            let out = f.run_with(&mut svgf, kernel);
+            assert!(
+                (out[10 * 40 + 19].x - 0.22).abs() < 1e-3,
+                "{}",
+                out[10 * 40 + 19]
+            );
+            assert!(
+                (out[10 * 40 + 20].x - 0.99).abs() < 1e-3,
+                "{}",
+                out[10 * 40 + 20]
+            );
+        }
     }
 }
 
@@ -287,7 +309,16 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
         }
         f
     };
-    for iterations in [1, 2, 3, 5, 6, 7] {
+    for (iterations, kernel) in [
+        (1, 5),
+        (2, 5),
+        (3, 5),
+        (5, 5),
+        (6, 5),
+        (7, 5),
+        (1, 3),
+        (5, 3),
+    ] {
         let (mut fast, mut slow) = (Svgf::new(), Svgf::new());
         slow.set_scalar(true);
         for k in 0..4 {
@@ -305,13 +336,13 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
                 motion: &f.motion,
                 emitter: &f.emitter,
             };
-            fast.filter(&input, iterations, &mut a).unwrap();
-            slow.filter(&input, iterations, &mut b).unwrap();
+            fast.filter(&input, iterations, kernel, &mut a).unwrap();
+            slow.filter(&input, iterations, kernel, &mut b).unwrap();
             for (i, (p, q)) in a.iter().zip(&b).enumerate() {
                 let tolerance = 1e-4 * (1.0 + q.abs().max_element());
                 assert!(
                     (*p - *q).abs().max_element() <= tolerance,
-                    "{iterations} passes, frame {k}, pixel ({}, {}): {p} against {q}",
+                    "{iterations} passes of {kernel}x{kernel}, frame {k}, pixel ({}, {}): {p} against {q}",
                     i % w,
                     i / w
                 );

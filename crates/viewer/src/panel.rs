@@ -382,6 +382,11 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         });
     ui.add_enabled_ui(f.method == Method::Svgf, |ui| {
         ui.add(egui::Slider::new(&mut f.atrous_iterations, 1..=8).text("a-trous iterations"));
+        ui.horizontal(|ui| {
+            ui.label("a-trous kernel");
+            ui.radio_value(&mut f.atrous_kernel, 5, "5x5 (the paper's)");
+            ui.radio_value(&mut f.atrous_kernel, 3, "3x3");
+        });
     });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;

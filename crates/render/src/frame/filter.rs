@@ -220,8 +220,12 @@ impl Filter {
             motion: &self.motion,
             emitter: &self.emitter,
         };
-        self.svgf
-            .filter(&frame, config.atrous_iterations, &mut self.image)
+        self.svgf.filter(
+            &frame,
+            config.atrous_iterations,
+            config.atrous_kernel,
+            &mut self.image,
+        )
     }
 
     fn run_data_driven(
