@@ -406,9 +406,10 @@ impl ViewRun<'_> {
                 ..config.clone()
             };
             let camera = self.world.camera(&config);
+            let task = format!("{}, {spp} spp", self.task);
             let progress = |f: f32| {
                 (self.runner.progress)(&Progress {
-                    task: &format!("{}, {spp} spp", self.task),
+                    task: &task,
                     done: (f.clamp(0.0, 1.0) * 1000.0) as u64,
                     total: 1000,
                 })

@@ -498,13 +498,6 @@ pub fn view_error(slot: &Slot, from: Vec3, to: Vec3) -> f32 {
     (slot.albedo() * slot.irradiance * df).max_element()
 }
 
-/// The aliasing depth test: whether the new camera ray through the pixel (G-buffer pixel `g`)
-/// sees the surface of `slot`'s stored point.
-#[inline]
-pub fn same_surface(slot: &Slot, g: &GPixel, tolerance: f32) -> bool {
-    slot.plane().same_surface(g, tolerance)
-}
-
 /// What happened to a pixel's states at the last camera move (the `rejection` display mode):
 /// the best outcome among the states that landed on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -616,23 +609,6 @@ const NO_CLAIM: u64 = u64::MAX;
 #[inline]
 fn winner(claim: u64) -> Option<usize> {
     (claim != NO_CLAIM).then_some((claim & 0xffff_ffff) as usize)
-}
-
-/// The state that moves to a target whose claim is `claim`: the winner, marked as carried,
-/// or an empty one.
-#[inline]
-fn moved(source: &[Slot], claim: u64) -> Slot {
-    match winner(claim) {
-        // Its point stays where it is: re-centred on the pixel it landed in, a state would
-        // lose the fraction of a pixel it moved at every step, and under small steps never
-        // move.
-        Some(j) => {
-            let mut slot = source[j];
-            slot.set(CARRIED, true);
-            slot
-        }
-        None => Slot::default(),
-    }
 }
 
 /// Pixels per parallel task of the passes here.
@@ -844,11 +820,19 @@ impl Reprojection {
                         *prob = NO_PROBABILITY;
                         for (slot, claim) in slots.iter_mut().zip(claims) {
                             let claim = std::mem::replace(claim.get_mut(), NO_CLAIM);
-                            if let Some(j) = winner(claim) {
-                                n += 1;
-                                *prob = prob.max(before[j / k]);
-                            }
-                            *slot = moved(source, claim);
+                            *slot = match winner(claim) {
+                                None => Slot::default(),
+                                Some(j) => {
+                                    n += 1;
+                                    *prob = prob.max(before[j / k]);
+                                    // Its point stays where it is: re-centred on the pixel it
+                                    // landed in, a state would lose the fraction of a pixel it
+                                    // moved at every step, and under small steps never move.
+                                    let mut slot = source[j];
+                                    slot.set(CARRIED, true);
+                                    slot
+                                }
+                            };
                         }
                         let mark = std::mem::take(mark.get_mut());
                         *fate = if n > 0 { Fate::Kept as u8 } else { mark };
