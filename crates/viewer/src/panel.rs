@@ -315,6 +315,11 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
             &mut a.keep_sampling,
             "combination: reprojected pixels keep their probability's samples",
         );
+        ui.add_enabled(
+            a.keep_sampling,
+            egui::Slider::new(&mut a.keep_sampling_after, 0..=a.max_spp)
+                .text("... after this many iterations"),
+        );
     });
     ui.separator();
 

@@ -50,7 +50,9 @@
 //! above 1 ([`FrameReport::probability_above_one`](super::FrameReport)). Beyond the thesis,
 //! [`AdaptiveConfig::keep_sampling`] (off by default): the reprojected pixels do not wait for
 //! iteration `max_spp` but keep being sampled with the probability they brought (while they
-//! wait, one schedule of 32 frames, they are the only pixels that do not improve).
+//! wait, one schedule of 32 frames, they are the only pixels that do not improve);
+//! [`AdaptiveConfig::keep_sampling_after`] lets them wait for that many iterations first, so
+//! that the frames right after a move trace the new pixels alone, as in Algorithm 2.
 //!
 //! Passes: this module has no pass of its own. Its decision ([`Schedule::wants`]) is read by
 //! the primary and lighting passes (which pixels are traced), and the accumulation pass fixes
@@ -96,6 +98,11 @@ pub struct AdaptiveConfig {
     /// reprojected pixel keeps being sampled with the probability it brought, instead of
     /// waiting for iteration `max_spp` (Algorithm 2) while only the new pixels are sampled.
     pub keep_sampling: bool,
+    /// With [`keep_sampling`](Self::keep_sampling): the iterations after a move during which
+    /// the reprojected pixels still wait (0: none). The new pixels have the first frames to
+    /// themselves, as in Algorithm 2, and the carried ones do not then stall for the rest of
+    /// the schedule.
+    pub keep_sampling_after: u32,
     /// Beyond the thesis: every frame traces about as many samples as a uniform frame
     /// (`spp` per pixel on average), so that adaptive frames cost what uniform ones cost.
     /// During the schedule a frame runs as many iterations as fit that budget (each pixel's
@@ -116,6 +123,7 @@ impl Default for AdaptiveConfig {
             cap: false,
             skip_empty: true,
             keep_sampling: false,
+            keep_sampling_after: 0,
             budget: false,
         }
     }
@@ -151,6 +159,17 @@ impl Measure {
 
 impl AdaptiveConfig {
     /// Checks the ranges: `1 <= min_spp <= max_spp <= 65536`.
+    /// The first iteration of the schedule at which the combination's reprojected pixels take
+    /// samples with their probability: `max_spp` (Algorithm 2: they wait), or
+    /// `keep_sampling_after` with [`keep_sampling`](Self::keep_sampling).
+    pub fn carried_from(&self) -> u32 {
+        if self.keep_sampling {
+            self.keep_sampling_after.min(self.max_spp)
+        } else {
+            self.max_spp
+        }
+    }
+
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.min_spp == 0 {
             return Err(ConfigError::new(
@@ -233,8 +252,9 @@ pub struct Schedule {
     /// Algorithm 2: pixels with a probability wait for the probability phase.
     pub combination: bool,
     pub cap: bool,
-    /// [`AdaptiveConfig::keep_sampling`].
-    pub keep_sampling: bool,
+    /// [`AdaptiveConfig::keep_sampling`]: the first iteration at which reprojected pixels
+    /// take samples with their probability (`max_spp` without it: they wait).
+    pub carried_from: u32,
     /// Seeds the probability phase's random numbers (the epoch's seed).
     pub seed: u64,
 }
@@ -251,7 +271,7 @@ impl Schedule {
             measure: config.measure,
             combination,
             cap: config.cap,
-            keep_sampling: config.keep_sampling,
+            carried_from: config.carried_from(),
             seed,
         }
     }
@@ -285,10 +305,7 @@ impl Schedule {
         }
         let end = self.end.min(self.max_spp);
         if self.combination && probability != NO_PROBABILITY {
-            if !self.keep_sampling {
-                return 0;
-            }
-            return (self.iteration..end)
+            return (self.iteration.max(self.carried_from)..end)
                 .map(|i| u32::from(draw(i) < probability))
                 .sum();
         }
@@ -351,28 +368,40 @@ impl Adaptive {
         if i >= max {
             return i;
         }
+        let carried_from = config.carried_from();
         // The largest V among the pixels the threshold decides (infinite: a pixel below
-        // min_spp, sampled whatever the threshold).
-        let largest = history
+        // min_spp, or a reprojected one sampled with its probability, (almost) never
+        // empty), and whether some reprojected pixel waits.
+        let (largest, carried) = history
             .par_iter()
             .zip(self.probability.par_iter())
             .map(|(h, &p)| {
-                let carried = combination && p != NO_PROBABILITY;
-                if carried && config.keep_sampling {
-                    // Sampled at random with its probability: (almost) never empty.
-                    f32::INFINITY
-                } else if carried || (config.cap && h.n >= max) {
-                    f32::NEG_INFINITY
+                if combination && p != NO_PROBABILITY {
+                    if carried_from <= i {
+                        (f32::INFINITY, false)
+                    } else {
+                        (f32::NEG_INFINITY, true)
+                    }
+                } else if config.cap && h.n >= max {
+                    (f32::NEG_INFINITY, false)
                 } else if h.n < min {
-                    f32::INFINITY
+                    (f32::INFINITY, false)
                 } else {
-                    deviation(h, config.measure)
+                    (deviation(h, config.measure), false)
                 }
             })
-            .reduce(|| f32::NEG_INFINITY, f32::max);
-        (i..max)
+            .reduce(
+                || (f32::NEG_INFINITY, false),
+                |a, b| (a.0.max(b.0), a.1 || b.1),
+            );
+        let busy = (i..max)
             .find(|&j| threshold(j, min, max) <= largest)
-            .unwrap_or(max)
+            .unwrap_or(max);
+        if carried {
+            busy.min(carried_from)
+        } else {
+            busy
+        }
     }
 
     /// The end of iteration `max_spp - 1`: every pixel's probability becomes
@@ -800,30 +829,64 @@ mod tests {
     #[test]
     fn reprojected_pixels_wait_or_keep_sampling_with_their_probability() {
         // Algorithm 2: during the schedule a pixel that brought a probability takes nothing;
-        // with `keep_sampling` it takes a sample with that probability at each iteration.
+        // with `keep_sampling` it takes a sample with that probability at each iteration
+        // from `keep_sampling_after` on.
         let stats = PixelStats::one(Vec3::ONE, Vec3::ZERO);
-        for keep_sampling in [false, true] {
+        for (keep_sampling, after) in [(false, 0), (true, 0), (true, 10), (true, 40)] {
             let config = AdaptiveConfig {
                 enabled: true,
                 keep_sampling,
+                keep_sampling_after: after,
                 ..AdaptiveConfig::default()
             };
             let (pixels, p) = (20_000, 0.3);
+            let mut expected = 0.0;
             let taken = (0..pixels)
                 .filter(|&i| {
-                    let s = Schedule::new(&config, 1 + i as u32 % 30, true, 9);
+                    let iteration = 1 + i as u32 % 30;
+                    if keep_sampling && iteration >= after {
+                        expected += f64::from(p);
+                    }
+                    let s = Schedule::new(&config, iteration, true, 9);
                     s.wants(i, &stats, p)
                 })
                 .count() as f64;
-            if keep_sampling {
-                let sd = (pixels as f64 * p as f64 * (1.0 - p as f64)).sqrt();
-                assert!(
-                    (taken - pixels as f64 * p as f64).abs() < 4.0 * sd,
-                    "{taken}"
-                );
-            } else {
+            let sd = (expected * (1.0 - f64::from(p))).sqrt();
+            assert!(
+                (taken - expected).abs() <= 4.0 * sd,
+                "keep {keep_sampling} after {after}: {taken} against {expected}"
+            );
+            if !keep_sampling || after >= 30 {
                 assert_eq!(taken, 0.0);
+            } else {
+                assert!(taken > 1000.0);
             }
+        }
+    }
+
+    #[test]
+    fn skipping_stops_at_the_iteration_reprojected_pixels_resume() {
+        // Every new pixel converged (V far below any threshold before the schedule's end),
+        // half the pixels carried: empty iterations are skipped up to `keep_sampling_after`
+        // (with `keep_sampling`), up to `max_spp` without it.
+        let flat = stats_of(&[Vec3::ONE; 8]);
+        let history = vec![flat; 8];
+        let mut adaptive = Adaptive::default();
+        adaptive.reset(history.len());
+        for p in adaptive.probability.iter_mut().step_by(2) {
+            *p = 0.5;
+        }
+        adaptive.iteration = 5;
+        for (keep_sampling, after, busy) in [(false, 10, 32), (true, 10, 10), (true, 3, 5)] {
+            let config = AdaptiveConfig {
+                enabled: true,
+                keep_sampling,
+                keep_sampling_after: after,
+                ..AdaptiveConfig::default()
+            };
+            assert_eq!(adaptive.first_busy(&config, &history, true), busy);
+            // Without the combination the probabilities do not matter.
+            assert_eq!(adaptive.first_busy(&config, &history, false), 32);
         }
     }
 

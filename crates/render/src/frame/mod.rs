@@ -173,6 +173,9 @@ pub struct Pipeline {
     /// The frame's first hits, kept for the whole frame when ReSTIR runs (its passes need
     /// every pixel's surface before the lighting pass).
     hits: Vec<Vec<PrimaryHit>>,
+    /// Reprojection with `fresh_spp`: the samples each pixel still lacks after the
+    /// accumulation pass's drops, and the buffers their pass traces into.
+    repair: Repair,
     epoch: u64,
     frames: u32,
     frame_number: u64,
@@ -210,6 +213,7 @@ impl Pipeline {
             restir: Restir::default(),
             filter: filter::Filter::default(),
             hits: Vec::new(),
+            repair: Repair::default(),
             epoch: 0,
             frames: 0,
             frame_number: 0,
@@ -510,9 +514,25 @@ impl Pipeline {
                     },
                 ]);
             }
+            let mut lighting_ms = wall - primary_ms;
+            if techniques && self.carried && frame.reprojection.fresh_spp > 0 {
+                let t = Instant::now();
+                rays += self.repair.run(
+                    &self.reprojection,
+                    &self.history,
+                    &mut self.lighting,
+                    &self.gbuffer,
+                    frame.reprojection.fresh_spp,
+                    frame.reprojection.depth_tolerance,
+                    self.after_move,
+                    previous,
+                    &tracer,
+                );
+                lighting_ms += t.elapsed().as_secs_f64() * 1e3;
+            }
             passes.push(PassTime {
                 pass: LIGHTING,
-                ms: wall - primary_ms,
+                ms: lighting_ms,
             });
 
             let t = Instant::now();
@@ -649,6 +669,7 @@ impl Pipeline {
             + self.reprojection.bytes()
             + self.restir.bytes()
             + self.filter.bytes()
+            + self.repair.bytes()
             + self.hits.iter().map(|r| r.capacity()).sum::<usize>() * size_of::<PrimaryHit>();
         (plain, techniques)
     }
@@ -670,6 +691,112 @@ impl Pipeline {
     /// The image (mean radiance, filtered when the filter is on), row-major.
     pub fn image(&self) -> Vec<glam::Vec3> {
         self.sources().linear(DisplayMode::Final)
+    }
+}
+
+/// Reprojection with `fresh_spp`, between the lighting and accumulation passes: a pixel
+/// sampled this frame whose states the accumulation pass will drop (the aliasing test after a
+/// move, a carried state its new sample disagrees with) would be left with this frame's
+/// samples alone, one where a hole takes `fresh_spp` (the lighting pass counted the states
+/// before the test, which needs the neighbours' G-buffer pixels). This pass traces the
+/// samples such pixels lack and merges them into their lighting, so that they show
+/// `fresh_spp` samples in this frame rather than in the next.
+#[derive(Debug, Default)]
+struct Repair {
+    /// Samples each pixel lacks (0: none).
+    need: Vec<u32>,
+    gbuffer: GBuffer,
+    lighting: Vec<LightSample>,
+}
+
+impl Repair {
+    /// Counts the missing samples, traces them and merges them into `lighting`; returns the
+    /// rays traced.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        reprojection: &Reprojection,
+        history: &[PixelStats],
+        lighting: &mut [LightSample],
+        gbuffer: &GBuffer,
+        fresh: u32,
+        tolerance: f32,
+        after_move: bool,
+        previous: Option<&Camera>,
+        tracer: &PathTracer,
+    ) -> u64 {
+        let w = gbuffer.width.max(1) as usize;
+        self.need.resize(lighting.len(), 0);
+        let missing: u64 = self
+            .need
+            .par_iter_mut()
+            .zip(lighting.par_iter())
+            .enumerate()
+            .map(|(p, (need, l))| {
+                *need = if l.stats.n == 0 {
+                    0
+                } else {
+                    let kept =
+                        reprojection.kept_by_sampled(p, &gbuffer.pixels, w, tolerance, after_move);
+                    fresh.saturating_sub(kept + l.stats.n)
+                };
+                u64::from(*need)
+            })
+            .sum();
+        if missing == 0 {
+            return 0;
+        }
+        self.gbuffer.resize(gbuffer.width, gbuffer.height);
+        self.lighting.resize(lighting.len(), LightSample::default());
+        let plan = Missing {
+            need: &self.need,
+            history,
+            lighting,
+        };
+        let (rays, _, _) = trace(
+            &mut self.gbuffer,
+            &mut self.lighting,
+            previous,
+            tracer,
+            &plan,
+        );
+        lighting
+            .par_iter_mut()
+            .zip(self.lighting.par_iter())
+            .zip(self.need.par_iter())
+            .for_each(|((l, extra), &need)| {
+                if need > 0 {
+                    l.stats.merge(&extra.stats);
+                }
+            });
+        rays
+    }
+
+    fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.need.capacity() * size_of::<u32>()
+            + self.gbuffer.pixels.capacity() * size_of::<GPixel>()
+            + self.lighting.capacity() * size_of::<LightSample>()
+    }
+}
+
+/// [`Repair`]'s pixels: the samples they lack, continuing their sample sequences after this
+/// frame's.
+struct Missing<'a> {
+    need: &'a [u32],
+    history: &'a [PixelStats],
+    lighting: &'a [LightSample],
+}
+
+impl Plan for Missing<'_> {
+    #[inline]
+    fn sample(&self, pixel: usize) -> Option<u32> {
+        (self.need[pixel] > 0).then(|| self.history[pixel].n + self.lighting[pixel].stats.n)
+    }
+
+    #[inline]
+    fn keep(&self, pixel: usize, _: &GPixel) -> u32 {
+        self.need[pixel]
     }
 }
 

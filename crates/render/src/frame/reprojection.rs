@@ -71,7 +71,14 @@
 //! Holes, and pixels whose states were all refused, start afresh; with `fresh_spp` (beyond
 //! the thesis, off by default) a pixel of an epoch that began with a move takes at once the
 //! samples it lacks up to `fresh_spp`, instead of one per frame: these pixels are few, but
-//! left at one sample they dominate the error of the reprojected image.
+//! left at one sample they dominate the error of the reprojected image. The lighting pass
+//! counts what the states hold before the aliasing test's edge check (which needs the
+//! neighbours' G-buffer pixels, not yet traced when a pixel is lit) and before carried states
+//! that the new sample disagrees with are dropped; the pipeline's repair step, between the
+//! lighting and accumulation passes, counts them with [`Reprojection::kept_by_sampled`] and
+//! traces the samples such pixels still lack, so that they too show `fresh_spp` samples in
+//! the frame of the move. (Without it they showed a single sample for one frame: right after
+//! each move the image's error rose four-fold for that frame, `BENCHMARKS.md`.)
 //!
 //! With 4 states the pixel's history merges its states' samples, each sample weighing the
 //! same. Weighing the states' means equally (as strata) was tried and measured worse: a
@@ -851,7 +858,47 @@ impl Reprojection {
     }
 }
 
+/// A carried state of a pixel sampled this frame that the sample disagrees with (`seen`:
+/// its plane agrees with the new G-buffer pixel), or that was marked mixed: its old
+/// footprint's surface is not all this pixel sees (a carried quarter's place in its new pixel
+/// is only approximate). The accumulation pass drops it.
+#[inline]
+fn carried_disagrees(s: &Slot, seen: bool) -> bool {
+    s.is_mixed() || !seen
+}
+
 impl Reprojection {
+    /// The samples the states of pixel `pixel`, sampled this frame, keep through the
+    /// accumulation pass (before its new samples are merged): what the aliasing test (on
+    /// the frame after a move) and the disagreement of carried states leave. `pixels` is the
+    /// frame's whole G-buffer, `w` its width.
+    pub fn kept_by_sampled(
+        &self,
+        pixel: usize,
+        pixels: &[GPixel],
+        w: usize,
+        tolerance: f32,
+        after_move: bool,
+    ) -> u32 {
+        let k = self.samples;
+        let g = &pixels[pixel];
+        self.slots.current[pixel * k..pixel * k + k]
+            .iter()
+            .filter(|s| {
+                if s.stats.n == 0 {
+                    return false;
+                }
+                let plane = s.plane();
+                let seen = plane.agrees(g, tolerance);
+                if after_move && !(seen && inside(&plane, pixels, pixel, w, tolerance)) {
+                    return false;
+                }
+                !(s.is_carried() && carried_disagrees(s, seen))
+            })
+            .map(|s| s.stats.n)
+            .sum()
+    }
+
     /// The statistics pixel `pixel` keeps after the aliasing depth test against its new
     /// G-buffer pixel `g` (what the accumulation pass will leave of its states).
     #[inline]
@@ -951,10 +998,7 @@ impl Reprojection {
                             continue;
                         }
                         if s.is_carried() {
-                            // A carried state anywhere in the pixel that the sample disagrees
-                            // with: its old footprint's surface is not all this one sees (a
-                            // carried quarter's place in its new pixel is only approximate).
-                            if s.is_mixed() || !seen {
+                            if carried_disagrees(s, seen) {
                                 *s = Slot::default();
                                 dropped += 1;
                             }
