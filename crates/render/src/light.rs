@@ -175,7 +175,7 @@ pub struct Lights {
 
 /// glTF's range window (1 without range).
 #[inline]
-fn range_window(distance: f32, inv_range: f32) -> f32 {
+pub(crate) fn range_window(distance: f32, inv_range: f32) -> f32 {
     let x = distance * inv_range;
     let w = (1.0 - (x * x) * (x * x)).clamp(0.0, 1.0);
     w * w
@@ -516,6 +516,28 @@ impl Lights {
         let (index, select) = self.choose(u_select)?;
         let point = self.sample_point(index, u)?;
         Some((point, self.point_pdf_selected(&point, select)))
+    }
+
+    /// Point light `point.light`'s position, intensity and inverse range, when it is a point
+    /// light with a positive, finite selection probability (what
+    /// [`evaluate_geometry`](Self::evaluate_geometry) asks of its density); `None` for
+    /// every other light. Seed 004 evaluates such lights eight at a time.
+    #[inline]
+    pub fn point_light(&self, point: &LightPoint) -> Option<(Vec3, Vec3, f32)> {
+        let index = point.light as usize;
+        if index >= self.count {
+            return None;
+        }
+        let Some(Punctual::Point {
+            position,
+            intensity,
+            inv_range,
+        }) = self.punctual.get(index.checked_sub(self.triangles.len())?)
+        else {
+            return None;
+        };
+        let select = self.selection_pmf(index);
+        (select > 0.0 && select.is_finite()).then_some((*position, *intensity, *inv_range))
     }
 
     /// [`evaluate`](Self::evaluate) and the geometry term that converts the point's measure to

@@ -24,6 +24,29 @@ impl Ndf {
         }
     }
 
+    /// GGX's [`d`](Self::d) without a branch (the same value, bit for bit).
+    #[inline(always)]
+    pub fn d_ggx_lane(&self, m: Vec3) -> f32 {
+        let z2 = m.z * m.z;
+        let s2 = m.x * m.x + m.y * m.y;
+        let t = s2 / self.a2 + z2;
+        let d = FRAC_1_PI / (self.a2 * t * t);
+        if m.z <= 0.0 {
+            0.0
+        } else {
+            d
+        }
+    }
+
+    /// GGX's [`lambda`](Self::lambda) (the same value, bit for bit), inlined into lanes.
+    #[inline(always)]
+    pub fn lambda_ggx_lane(&self, w: Vec3) -> f32 {
+        let az = w.z.abs();
+        let s2 = w.x * w.x + w.y * w.y;
+        let t = self.a2 * s2;
+        t / (2.0 * az * ((az * az + t).sqrt() + az))
+    }
+
     /// D(m), the microfacet normal density (normalised so that the integral of D(m) m.z over
     /// the hemisphere is 1). Zero for `m.z <= 0`.
     #[inline]

@@ -908,3 +908,64 @@ fn lambertian_short_path_equals_the_general_one() {
     };
     assert!(!Bsdf::new(&coated).lambertian);
 }
+
+#[test]
+fn lanes_evaluate_the_bsdf_bit_for_bit() {
+    // `eval_lane` (no branch on `wi`) against `eval_at`, over random directions on both
+    // sides of the surface, grazing ones and `wi.z = 0` included; and which BSDFs have lanes.
+    let mut rng = Rng::new(5, 11);
+    let unit = |rng: &mut Rng| {
+        let z = 2.0 * rng.next_f32() - 1.0;
+        let phi = TAU * rng.next_f32();
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    };
+    let mut params = Vec::new();
+    for (metallic, roughness, specular) in [
+        (0.0, 0.5, 0.0),
+        (0.0, 0.3, 0.5),
+        (1.0, 0.1, 0.5),
+        (0.4, 0.8, 1.0),
+        (0.0, 0.0, 0.5),
+    ] {
+        let mut p = BsdfParams::lambertian(Vec3::new(0.8, 0.5, 0.3));
+        (p.metallic, p.roughness, p.specular) = (metallic, roughness, specular);
+        params.push(p);
+    }
+    params.push(BsdfParams::lambertian(Vec3::splat(0.5)));
+    let mut evaluated = 0;
+    for p in &params {
+        let bsdf = Bsdf::new(p);
+        assert!(bsdf.has_lanes(), "{p:?}");
+        for _ in 0..200 {
+            let mut wo = unit(&mut rng);
+            if evaluated % 17 == 0 {
+                wo.z = 1e-4;
+            }
+            let at = bsdf.at(wo.normalize());
+            for k in 0..50 {
+                let mut wi = unit(&mut rng);
+                if k == 0 {
+                    wi.z = 0.0;
+                }
+                let (a, b) = (bsdf.eval_lane(&at, wi), bsdf.eval_at(&at, wi));
+                assert_eq!(
+                    a.to_array().map(f32::to_bits),
+                    b.to_array().map(f32::to_bits)
+                );
+                evaluated += usize::from(b.max_element() > 0.0);
+            }
+        }
+    }
+    assert!(evaluated > 10_000, "{evaluated}");
+    // Beckmann, refraction and transmission lobes have no lanes.
+    let mut beckmann = params[1];
+    beckmann.distribution = Microfacet::Beckmann;
+    let mut glass = params[1];
+    glass.transmission = 1.0;
+    let mut thin = glass;
+    thin.thin_walled = true;
+    for p in [beckmann, glass, thin] {
+        assert!(!Bsdf::new(&p).has_lanes(), "{p:?}");
+    }
+}

@@ -258,6 +258,42 @@ impl Reservoir {
     }
 }
 
+/// Candidates evaluated together ([`Receiver::candidates_in_lanes`]).
+const LANES: usize = 8;
+
+/// `N` point lights, structure of arrays (unused lanes hold zeros).
+struct PointLanes<const N: usize> {
+    px: [f32; N],
+    py: [f32; N],
+    pz: [f32; N],
+    ir: [f32; N],
+    ig: [f32; N],
+    ib: [f32; N],
+    inv_range: [f32; N],
+}
+
+impl<const N: usize> PointLanes<N> {
+    #[inline(always)]
+    fn new() -> Self {
+        Self {
+            px: [0.0; N],
+            py: [0.0; N],
+            pz: [0.0; N],
+            ir: [0.0; N],
+            ig: [0.0; N],
+            ib: [0.0; N],
+            inv_range: [0.0; N],
+        }
+    }
+
+    #[inline(always)]
+    fn set(&mut self, k: usize, position: Vec3, intensity: Vec3, inv_range: f32) {
+        (self.px[k], self.py[k], self.pz[k]) = (position.x, position.y, position.z);
+        (self.ir[k], self.ig[k], self.ib[k]) = (intensity.x, intensity.y, intensity.z);
+        self.inv_range[k] = inv_range;
+    }
+}
+
 /// A first-hit surface as the reservoirs see it: where light is received and how it is
 /// reflected toward the camera.
 #[derive(Debug, Clone, Copy)]
@@ -332,6 +368,20 @@ impl Receiver {
     /// Resampled importance sampling of `count` light samples (chosen by the lights'
     /// selection, then uniformly on the light) by their target here.
     pub fn candidates(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
+        if self.bsdf.has_lanes() {
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2, checked just above.
+                return unsafe { self.candidates_avx2(lights, count, rng) };
+            }
+            return self.candidates_in_lanes(lights, count, rng);
+        }
+        self.candidates_one_by_one(lights, count, rng)
+    }
+
+    /// [`candidates`](Self::candidates) one at a time: the reference, and the path for BSDFs
+    /// without lanes.
+    pub fn candidates_one_by_one(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
         Reservoir::resample(
             count,
             rng,
@@ -341,6 +391,121 @@ impl Receiver {
             },
             |point| self.target(lights, point),
         )
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn candidates_avx2(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
+        self.candidates_in_lanes(lights, count, rng)
+    }
+
+    /// [`candidates`](Self::candidates) eight at a time, the same reservoir bit for bit as
+    /// [`candidates_one_by_one`](Self::candidates_one_by_one) (the same random numbers in the
+    /// same order, the same arithmetic): each block of eight candidates is drawn first (the
+    /// light, its point, and the resampling number of each valid one), then the targets of
+    /// those on point lights are computed together in a loop without branches, which the
+    /// compiler turns into SIMD lanes ([`point_targets`](Self::point_targets)), the others one
+    /// by one, then the block streams through the reservoir in order.
+    #[inline(always)]
+    pub fn candidates_in_lanes(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
+        let mut r = Reservoir::default();
+        let mut left = count;
+        while left > 0 {
+            let n = left.min(LANES as u32) as usize;
+            left -= n as u32;
+            let mut points = [LightPoint::default(); LANES];
+            let mut block = [(0.0f32, 0.0f32); LANES];
+            let mut drawn = [false; LANES];
+            for k in 0..n {
+                let u_select = rng.next_f32();
+                if let Some((p, density)) =
+                    lights.draw(u_select, Vec2::new(rng.next_f32(), rng.next_f32()))
+                {
+                    if density > 0.0 {
+                        points[k] = p;
+                        block[k] = (density, rng.next_f32());
+                        drawn[k] = true;
+                    }
+                }
+            }
+            let targets = self.targets::<LANES>(lights, &points[..n], &drawn);
+            for k in 0..n {
+                if !drawn[k] {
+                    r.m += 1.0;
+                    continue;
+                }
+                let ((density, u), t) = (block[k], targets[k]);
+                r.update(points[k], t / density, t, 1.0, u);
+            }
+        }
+        r.finish(r.m);
+        r
+    }
+
+    /// The targets of `points` (at most `N`) whose `wanted` is set, [`target`](Self::target)
+    /// of each bit for bit (0 for the others): those on point lights together in `N` lanes
+    /// ([`point_targets`](Self::point_targets)), the others one by one.
+    #[inline(always)]
+    fn targets<const N: usize>(
+        &self,
+        lights: &Lights,
+        points: &[LightPoint],
+        wanted: &[bool],
+    ) -> [f32; N] {
+        let mut lanes = PointLanes::<N>::new();
+        let mut point = [false; N];
+        for (k, p) in points.iter().enumerate() {
+            if wanted[k] {
+                if let Some((position, intensity, inv_range)) = lights.point_light(p) {
+                    lanes.set(k, position, intensity, inv_range);
+                    point[k] = true;
+                }
+            }
+        }
+        let mut targets = self.point_targets(&lanes);
+        for (k, p) in points.iter().enumerate() {
+            if !point[k] {
+                targets[k] = if wanted[k] {
+                    self.target(lights, p)
+                } else {
+                    0.0
+                };
+            }
+        }
+        targets
+    }
+
+    /// The target function of `N` point lights here, as [`target`](Self::target) computes
+    /// it for each (bit for bit), in one loop without branches on the lanes.
+    #[inline(always)]
+    fn point_targets<const N: usize>(&self, lanes: &PointLanes<N>) -> [f32; N] {
+        let s = &self.surface;
+        let wo_ng = self.wo.dot(s.ng);
+        let mut out = [0.0; N];
+        for (k, out) in out.iter_mut().enumerate() {
+            let position = Vec3::new(lanes.px[k], lanes.py[k], lanes.pz[k]);
+            let intensity = Vec3::new(lanes.ir[k], lanes.ig[k], lanes.ib[k]);
+            // Lights::evaluate_geometry for a point light: its direction, distance and
+            // radiance, valid where the distance is positive and finite and the radiance
+            // positive.
+            let to = position - s.p;
+            let d2 = to.length_squared();
+            let d = d2.sqrt();
+            let wi = to / d;
+            let radiance = intensity * (crate::light::range_window(d, lanes.inv_range[k]) / d2);
+            let lit = d2 > 0.0 && d2.is_finite() && radiance.max_element() > 0.0;
+            // Receiver::receive.
+            let facing = wi.dot(s.ng) * wo_ng > 0.0 || self.transmits;
+            let wi_local = s.to_local(wi);
+            let f = self.bsdf.eval_lane(&self.at, wi_local);
+            let target = luminance(f * wi_local.z.abs() * radiance) * 1.0;
+            *out = if lit && facing && target > 0.0 && target.is_finite() {
+                target
+            } else {
+                0.0
+            };
+        }
+        out
     }
 
     /// The target function of `point` here (0 where it brings nothing).
