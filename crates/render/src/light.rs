@@ -78,6 +78,25 @@ pub struct LightSample {
     pub delta: bool,
 }
 
+/// A light as seed 004's SIMD lanes evaluate it ([`Lights::lane_light`]).
+#[derive(Debug, Clone, Copy)]
+pub enum LaneLight {
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+        inv_range: f32,
+    },
+    /// An untextured emissive triangle at the chosen `point`, with its selection probability.
+    Triangle {
+        point: Vec3,
+        normal: Vec3,
+        area: f32,
+        two_sided: bool,
+        emissive: Vec3,
+        select: f32,
+    },
+}
+
 /// A point chosen on a light, independent of any shading point (seed 004's reservoirs keep
 /// it and re-evaluate it at other pixels and frames with [`Lights::evaluate`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -518,26 +537,46 @@ impl Lights {
         Some((point, self.point_pdf_selected(&point, select)))
     }
 
-    /// Point light `point.light`'s position, intensity and inverse range, when it is a point
-    /// light with a positive, finite selection probability (what
-    /// [`evaluate_geometry`](Self::evaluate_geometry) asks of its density); `None` for
-    /// every other light. Seed 004 evaluates such lights eight at a time.
+    /// What seed 004's lanes need to evaluate `point` as
+    /// [`evaluate_geometry`](Self::evaluate_geometry) does, for point lights and untextured
+    /// emissive triangles whose selection probability is positive and finite; `None` for
+    /// every other light (the lanes leave those to `evaluate_geometry`).
     #[inline]
-    pub fn point_light(&self, point: &LightPoint) -> Option<(Vec3, Vec3, f32)> {
+    pub fn lane_light(&self, point: &LightPoint) -> Option<LaneLight> {
         let index = point.light as usize;
         if index >= self.count {
             return None;
         }
-        let Some(Punctual::Point {
-            position,
-            intensity,
-            inv_range,
-        }) = self.punctual.get(index.checked_sub(self.triangles.len())?)
-        else {
-            return None;
-        };
         let select = self.selection_pmf(index);
-        (select > 0.0 && select.is_finite()).then_some((*position, *intensity, *inv_range))
+        if !(select > 0.0 && select.is_finite()) {
+            return None;
+        }
+        if let Some(t) = self.triangles.get(index) {
+            let e = &self.emitters[t.emitter as usize];
+            if e.texture.is_some() && t.uvs != NONE {
+                return None;
+            }
+            return Some(LaneLight::Triangle {
+                point: point.point,
+                normal: t.normal,
+                area: t.area,
+                two_sided: t.two_sided,
+                emissive: e.emissive,
+                select,
+            });
+        }
+        match self.punctual.get(index - self.triangles.len()) {
+            Some(&Punctual::Point {
+                position,
+                intensity,
+                inv_range,
+            }) => Some(LaneLight::Point {
+                position,
+                intensity,
+                inv_range,
+            }),
+            _ => None,
+        }
     }
 
     /// [`evaluate`](Self::evaluate) and the geometry term that converts the point's measure to

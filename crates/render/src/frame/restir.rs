@@ -72,7 +72,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bsdf::{Bsdf, BsdfAt};
 use crate::config::ConfigError;
-use crate::light::{LightPoint, LightSample, Lights};
+use crate::light::{LaneLight, LightPoint, LightSample, Lights};
 use crate::path::{PathTracer, Vertex};
 
 use super::gbuffer::{GBuffer, PrimaryHit};
@@ -261,36 +261,72 @@ impl Reservoir {
 /// Candidates evaluated together ([`Receiver::candidates_in_lanes`]).
 const LANES: usize = 8;
 
-/// `N` point lights, structure of arrays (unused lanes hold zeros).
-struct PointLanes<const N: usize> {
-    px: [f32; N],
-    py: [f32; N],
-    pz: [f32; N],
-    ir: [f32; N],
-    ig: [f32; N],
-    ib: [f32; N],
+/// `N` lights ([`LaneLight`]), structure of arrays (unused lanes hold zeros). Point
+/// lights: position `q`, intensity `e`, `inv_range`; triangles: the chosen point `q`, the
+/// emission `e`, the triangle's normal, area, sidedness and selection probability.
+struct LightLanes<const N: usize> {
+    q: [[f32; N]; 3],
+    e: [[f32; N]; 3],
     inv_range: [f32; N],
+    normal: [[f32; N]; 3],
+    area: [f32; N],
+    select: [f32; N],
+    triangle: [bool; N],
+    two_sided: [bool; N],
 }
 
-impl<const N: usize> PointLanes<N> {
+impl<const N: usize> LightLanes<N> {
     #[inline(always)]
     fn new() -> Self {
         Self {
-            px: [0.0; N],
-            py: [0.0; N],
-            pz: [0.0; N],
-            ir: [0.0; N],
-            ig: [0.0; N],
-            ib: [0.0; N],
+            q: [[0.0; N]; 3],
+            e: [[0.0; N]; 3],
             inv_range: [0.0; N],
+            normal: [[0.0; N]; 3],
+            area: [0.0; N],
+            select: [0.0; N],
+            triangle: [false; N],
+            two_sided: [false; N],
         }
     }
 
     #[inline(always)]
-    fn set(&mut self, k: usize, position: Vec3, intensity: Vec3, inv_range: f32) {
-        (self.px[k], self.py[k], self.pz[k]) = (position.x, position.y, position.z);
-        (self.ir[k], self.ig[k], self.ib[k]) = (intensity.x, intensity.y, intensity.z);
-        self.inv_range[k] = inv_range;
+    fn set_vec(lanes: &mut [[f32; N]; 3], k: usize, v: Vec3) {
+        (lanes[0][k], lanes[1][k], lanes[2][k]) = (v.x, v.y, v.z);
+    }
+
+    #[inline(always)]
+    fn get_vec(lanes: &[[f32; N]; 3], k: usize) -> Vec3 {
+        Vec3::new(lanes[0][k], lanes[1][k], lanes[2][k])
+    }
+
+    #[inline(always)]
+    fn set(&mut self, k: usize, light: LaneLight) {
+        match light {
+            LaneLight::Point {
+                position,
+                intensity,
+                inv_range,
+            } => {
+                Self::set_vec(&mut self.q, k, position);
+                Self::set_vec(&mut self.e, k, intensity);
+                self.inv_range[k] = inv_range;
+            }
+            LaneLight::Triangle {
+                point,
+                normal,
+                area,
+                two_sided,
+                emissive,
+                select,
+            } => {
+                Self::set_vec(&mut self.q, k, point);
+                Self::set_vec(&mut self.e, k, emissive);
+                Self::set_vec(&mut self.normal, k, normal);
+                (self.area[k], self.select[k]) = (area, select);
+                (self.triangle[k], self.two_sided[k]) = (true, two_sided);
+            }
+        }
     }
 }
 
@@ -403,9 +439,9 @@ impl Receiver {
     /// [`candidates_one_by_one`](Self::candidates_one_by_one) (the same random numbers in the
     /// same order, the same arithmetic): each block of eight candidates is drawn first (the
     /// light, its point, and the resampling number of each valid one), then the targets of
-    /// those on point lights are computed together in a loop without branches, which the
-    /// compiler turns into SIMD lanes ([`point_targets`](Self::point_targets)), the others one
-    /// by one, then the block streams through the reservoir in order.
+    /// those on point lights and untextured triangles are computed together in a loop without
+    /// branches, which the compiler turns into SIMD lanes ([`lane_targets`](Self::lane_targets)),
+    /// the others one by one, then the block streams through the reservoir in order.
     #[inline(always)]
     pub fn candidates_in_lanes(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
         let mut r = Reservoir::default();
@@ -443,8 +479,8 @@ impl Receiver {
     }
 
     /// The targets of `points` (at most `N`) whose `wanted` is set, [`target`](Self::target)
-    /// of each bit for bit (0 for the others): those on point lights together in `N` lanes
-    /// ([`point_targets`](Self::point_targets)), the others one by one.
+    /// of each bit for bit (0 for the others): those on point lights and untextured triangles
+    /// together in `N` lanes ([`lane_targets`](Self::lane_targets)), the others one by one.
     #[inline(always)]
     fn targets<const N: usize>(
         &self,
@@ -452,17 +488,17 @@ impl Receiver {
         points: &[LightPoint],
         wanted: &[bool],
     ) -> [f32; N] {
-        let mut lanes = PointLanes::<N>::new();
+        let mut lanes = LightLanes::<N>::new();
         let mut point = [false; N];
         for (k, p) in points.iter().enumerate() {
             if wanted[k] {
-                if let Some((position, intensity, inv_range)) = lights.point_light(p) {
-                    lanes.set(k, position, intensity, inv_range);
+                if let Some(light) = lights.lane_light(p) {
+                    lanes.set(k, light);
                     point[k] = true;
                 }
             }
         }
-        let mut targets = self.point_targets(&lanes);
+        let mut targets = self.lane_targets(&lanes);
         for (k, p) in points.iter().enumerate() {
             if !point[k] {
                 targets[k] = if wanted[k] {
@@ -475,30 +511,47 @@ impl Receiver {
         targets
     }
 
-    /// The target function of `N` point lights here, as [`target`](Self::target) computes
-    /// it for each (bit for bit), in one loop without branches on the lanes.
+    /// The target function of `N` lights here, as [`target`](Self::target) computes it for
+    /// each (bit for bit), in one loop without branches on the lanes: each lane computes what
+    /// `Lights::evaluate_geometry` gives for a point light and for a triangle, and keeps its
+    /// own.
     #[inline(always)]
-    fn point_targets<const N: usize>(&self, lanes: &PointLanes<N>) -> [f32; N] {
+    fn lane_targets<const N: usize>(&self, lanes: &LightLanes<N>) -> [f32; N] {
         let s = &self.surface;
         let wo_ng = self.wo.dot(s.ng);
         let mut out = [0.0; N];
         for (k, out) in out.iter_mut().enumerate() {
-            let position = Vec3::new(lanes.px[k], lanes.py[k], lanes.pz[k]);
-            let intensity = Vec3::new(lanes.ir[k], lanes.ig[k], lanes.ib[k]);
-            // Lights::evaluate_geometry for a point light: its direction, distance and
-            // radiance, valid where the distance is positive and finite and the radiance
-            // positive.
-            let to = position - s.p;
+            let q = LightLanes::get_vec(&lanes.q, k);
+            let e = LightLanes::get_vec(&lanes.e, k);
+            let to = q - s.p;
             let d2 = to.length_squared();
             let d = d2.sqrt();
             let wi = to / d;
-            let radiance = intensity * (crate::light::range_window(d, lanes.inv_range[k]) / d2);
-            let lit = d2 > 0.0 && d2.is_finite() && radiance.max_element() > 0.0;
+            // A point light: its radiance, valid at a positive, finite distance.
+            let point_radiance = e * (crate::light::range_window(d, lanes.inv_range[k]) / d2);
+            let point_ok = d2 > 0.0 && d2.is_finite() && point_radiance.max_element() > 0.0;
+            // A triangle: the solid-angle density of its point and the geometry term.
+            let cos = -LightLanes::get_vec(&lanes.normal, k).dot(wi);
+            let cos = if lanes.two_sided[k] { cos.abs() } else { cos };
+            let pdf = d2 / (lanes.area[k] * cos);
+            let density = lanes.select[k] * pdf;
+            let triangle_ok = !(cos.is_nan() || cos <= 0.0)
+                && pdf > 0.0
+                && pdf.is_finite()
+                && e.max_element() > 0.0
+                && density > 0.0
+                && density.is_finite();
+            let g_triangle = 1.0 / (lanes.area[k] * pdf);
+            let (radiance, g, lit) = if lanes.triangle[k] {
+                (e, g_triangle, triangle_ok)
+            } else {
+                (point_radiance, 1.0, point_ok)
+            };
             // Receiver::receive.
             let facing = wi.dot(s.ng) * wo_ng > 0.0 || self.transmits;
             let wi_local = s.to_local(wi);
             let f = self.bsdf.eval_lane(&self.at, wi_local);
-            let target = luminance(f * wi_local.z.abs() * radiance) * 1.0;
+            let target = luminance(f * wi_local.z.abs() * radiance) * g;
             *out = if lit && facing && target > 0.0 && target.is_finite() {
                 target
             } else {
@@ -552,6 +605,8 @@ pub struct Restir {
     pub reservoirs: Vec<Reservoir>,
     /// Scratch for the spatial iterations.
     scratch: Vec<Reservoir>,
+    /// This frame's surfaces as the spatial pass compares them.
+    keys: Vec<Key>,
     /// This frame's receivers (`None`: sky or delta surface).
     pub receivers: Vec<Option<Receiver>>,
     /// The previous frame's final reservoirs, receivers and G-buffer, for temporal reuse.
@@ -581,12 +636,30 @@ fn pixel_rng(seed: u64, pixel: usize, pass: u64, index: u32) -> Rng {
     )
 }
 
-/// Surfaces close enough to share samples: relative depth and normal tests.
+/// What the spatial pass compares of a pixel's surface ([`similar`]): its depth (NaN for
+/// the sky, which is similar to nothing) and normal, in 16 bytes where a G-buffer pixel takes
+/// 64, so that the neighbours' random reads stay in cache.
+#[derive(Debug, Clone, Copy, Default)]
+struct Key {
+    depth: f32,
+    normal: Vec3,
+}
+
+impl Key {
+    #[inline]
+    fn of(g: &GPixel) -> Self {
+        Self {
+            depth: if g.is_sky() { f32::NAN } else { g.depth },
+            normal: g.normal,
+        }
+    }
+}
+
+/// Surfaces close enough to share samples: relative depth and normal tests (false where
+/// either is the sky: its NaN depth fails the first).
 #[inline]
-fn similar(a: &GPixel, b: &GPixel, config: &RestirConfig) -> bool {
-    !a.is_sky()
-        && !b.is_sky()
-        && (a.depth - b.depth).abs() <= config.depth_threshold * a.depth
+fn similar(a: &Key, b: &Key, config: &RestirConfig) -> bool {
+    (a.depth - b.depth).abs() <= config.depth_threshold * a.depth
         && a.normal.dot(b.normal) >= config.normal_threshold
 }
 
@@ -604,6 +677,7 @@ impl Restir {
             + (self.receivers.capacity() + self.previous_receivers.capacity())
                 * size_of::<Option<Receiver>>()
             + self.previous_gbuffer.capacity() * size_of::<GPixel>()
+            + self.keys.capacity() * size_of::<Key>()
     }
 
     /// The candidates, temporal and spatial passes for a frame whose first hits (sample
@@ -879,7 +953,8 @@ impl Restir {
     }
 
     /// One spatial iteration: each reservoir combined with `neighbours` others within
-    /// `radius` pixels that pass the depth and normal tests.
+    /// `radius` pixels that pass the depth and normal tests (on the frame's [`Key`]s, which
+    /// iteration 0 takes from `gbuffer`).
     fn spatial(
         &mut self,
         tracer: &PathTracer,
@@ -893,6 +968,14 @@ impl Restir {
         let seed = tracer.config.seed;
         self.scratch
             .resize(self.reservoirs.len(), Reservoir::default());
+        if iteration == 0 || self.keys.len() != gbuffer.len() {
+            self.keys.resize(gbuffer.len(), Key::default());
+            self.keys
+                .par_iter_mut()
+                .zip(gbuffer.par_iter())
+                .for_each(|(k, g)| *k = Key::of(g));
+        }
+        let keys = &self.keys;
         let input = &self.reservoirs;
         let receivers = &self.receivers;
         let rays = self
@@ -904,7 +987,7 @@ impl Restir {
                 let Some(receiver) = &receivers[pixel] else {
                     return 0;
                 };
-                let g = &gbuffer[pixel];
+                let key = &keys[pixel];
                 let (x, y) = (pixel as i64 % w, pixel as i64 / w);
                 let mut rng = pixel_rng(seed, pixel, 2 + iteration as u64, index);
                 // The neighbours taken (a vector per thread, kept across pixels).
@@ -924,7 +1007,7 @@ impl Restir {
                     // A pixel without a receiver has an empty reservoir (M = 0). The plain
                     // combination never reads the neighbour's receiver (a cache miss each):
                     // only the unbiased count and the MIS weights do.
-                    if input[q].m == 0.0 || !similar(g, &gbuffer[q], config) {
+                    if input[q].m == 0.0 || !similar(key, &keys[q], config) {
                         continue;
                     }
                     let other = if config.unbiased || config.mis {

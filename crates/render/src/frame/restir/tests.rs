@@ -314,16 +314,37 @@ fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
     }
 }
 
-/// `lit_world` with `n` random point lights besides its two emissive quads.
+/// `lit_world` with `n` random point lights besides its two emissive quads, and a spot and a
+/// directional light (not in lanes: evaluated one by one among the others).
 fn mixed_world(n: usize) -> World {
+    use pathlight_scene::{PunctualKind, PunctualLight};
     let mut scene = lit_world().scene;
     scene.add_random_point_lights(n, 7);
+    scene.lights.push(PunctualLight {
+        name: "spot".into(),
+        kind: PunctualKind::Spot {
+            inner_cone: 0.3,
+            outer_cone: 0.8,
+        },
+        position: Vec3::new(0.5, 2.0, 0.5),
+        direction: Vec3::NEG_Y,
+        intensity: Vec3::splat(20.0),
+        range: None,
+    });
+    scene.lights.push(PunctualLight {
+        name: "sun".into(),
+        kind: PunctualKind::Directional,
+        position: Vec3::ZERO,
+        direction: Vec3::new(0.2, -1.0, 0.1).normalize(),
+        intensity: Vec3::splat(3.0),
+        range: None,
+    });
     World::new(scene, LightSelection::Power)
 }
 
 #[test]
 fn candidates_in_lanes_are_the_reference_bit_for_bit() {
-    // Eight at a time (point lights in SIMD lanes, the quads' triangles one by one) against
+    // Eight at a time (point lights and the quads' untextured triangles in SIMD lanes) against
     // one at a time: the same reservoir, the same random numbers consumed, for BSDFs with
     // lanes (Lambertian, dielectric and metallic GGX) seen from above and at grazing angles.
     let world = mixed_world(40);
