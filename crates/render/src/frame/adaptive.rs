@@ -158,7 +158,6 @@ impl Measure {
 }
 
 impl AdaptiveConfig {
-    /// Checks the ranges: `1 <= min_spp <= max_spp <= 65536`.
     /// The first iteration of the schedule at which the combination's reprojected pixels take
     /// samples with their probability: `max_spp` (Algorithm 2: they wait), or
     /// `keep_sampling_after` with [`keep_sampling`](Self::keep_sampling).
@@ -170,6 +169,7 @@ impl AdaptiveConfig {
         }
     }
 
+    /// Checks the ranges: `1 <= min_spp <= max_spp <= 65536`.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.min_spp == 0 {
             return Err(ConfigError::new(
