@@ -469,12 +469,15 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         enabled: false,
         min_spp: 2,
         max_spp: 8,
+        keep_sampling: true,
+        keep_sampling_after: 3,
         ..AdaptiveConfig::default()
     };
     tuned.frame.reprojection = ReprojectionConfig {
         enabled: false,
         samples: 4,
         max_error: 0.5,
+        fresh_spp: 8,
         ..ReprojectionConfig::default()
     };
     tuned.frame.restir = pathlight_render::frame::restir::RestirConfig {
