@@ -137,6 +137,15 @@ fn a_still_wall_settles(kernel: u32) {
     assert!((mean - 0.55).abs() < 0.01, "{mean}");
 }
 
+/// Pixel `pixel` of `out` has red `expected` within 1e-3.
+fn assert_red(out: &[Vec3], pixel: usize, expected: f32) {
+    assert!(
+        (out[pixel].x - expected).abs() < 1e-3,
+        "pixel {pixel}: {}",
+        out[pixel]
+    );
+}
+
 #[test]
 fn a_normal_edge_is_not_blurred_across() {
     let mut f = Frame::flat(40, 20, 0.2);
@@ -151,16 +160,8 @@ fn a_normal_edge_is_not_blurred_across() {
         let mut svgf = Svgf::new();
         for _ in 0..3 {
             let out = f.run_with(&mut svgf, kernel);
-            assert!(
-                (out[10 * 40 + 19].x - 0.22).abs() < 1e-3,
-                "{}",
-                out[10 * 40 + 19]
-            );
-            assert!(
-                (out[10 * 40 + 20].x - 0.99).abs() < 1e-3,
-                "{}",
-                out[10 * 40 + 20]
-            );
+            assert_red(&out, 10 * 40 + 19, 0.22);
+            assert_red(&out, 10 * 40 + 20, 0.99);
         }
     }
 }
@@ -185,16 +186,8 @@ fn history_is_dropped_where_the_surface_changed() {
         }
     }
     let out = new.run(&mut svgf);
-    assert!(
-        (out[10 * 40 + 5].x - 0.88).abs() < 1e-3,
-        "{}",
-        out[10 * 40 + 5]
-    );
-    assert!(
-        (out[10 * 40 + 35].x - 0.22).abs() < 1e-3,
-        "{}",
-        out[10 * 40 + 35]
-    );
+    assert_red(&out, 10 * 40 + 5, 0.88);
+    assert_red(&out, 10 * 40 + 35, 0.22);
 }
 
 #[test]

@@ -267,42 +267,29 @@ impl Reservoir {
 /// Candidates evaluated together ([`Receiver::candidates_in_lanes`]).
 const LANES: usize = 8;
 
-/// `N` lights ([`LaneLight`]), structure of arrays (unused lanes hold zeros). Point
+/// [`LANES`] lights ([`LaneLight`]), structure of arrays (unused lanes hold zeros). Point
 /// lights: position `q`, intensity `e`, `inv_range`; triangles: the chosen point `q`, the
 /// emission `e`, the triangle's normal, area, sidedness and selection probability.
-struct LightLanes<const N: usize> {
-    q: [[f32; N]; 3],
-    e: [[f32; N]; 3],
-    inv_range: [f32; N],
-    normal: [[f32; N]; 3],
-    area: [f32; N],
-    select: [f32; N],
-    triangle: [bool; N],
-    two_sided: [bool; N],
+#[derive(Default)]
+struct LightLanes {
+    q: [[f32; LANES]; 3],
+    e: [[f32; LANES]; 3],
+    inv_range: [f32; LANES],
+    normal: [[f32; LANES]; 3],
+    area: [f32; LANES],
+    select: [f32; LANES],
+    triangle: [bool; LANES],
+    two_sided: [bool; LANES],
 }
 
-impl<const N: usize> LightLanes<N> {
+impl LightLanes {
     #[inline(always)]
-    fn new() -> Self {
-        Self {
-            q: [[0.0; N]; 3],
-            e: [[0.0; N]; 3],
-            inv_range: [0.0; N],
-            normal: [[0.0; N]; 3],
-            area: [0.0; N],
-            select: [0.0; N],
-            triangle: [false; N],
-            two_sided: [false; N],
-        }
-    }
-
-    #[inline(always)]
-    fn set_vec(lanes: &mut [[f32; N]; 3], k: usize, v: Vec3) {
+    fn set_vec(lanes: &mut [[f32; LANES]; 3], k: usize, v: Vec3) {
         (lanes[0][k], lanes[1][k], lanes[2][k]) = (v.x, v.y, v.z);
     }
 
     #[inline(always)]
-    fn get_vec(lanes: &[[f32; N]; 3], k: usize) -> Vec3 {
+    fn get_vec(lanes: &[[f32; LANES]; 3], k: usize) -> Vec3 {
         Vec3::new(lanes[0][k], lanes[1][k], lanes[2][k])
     }
 
@@ -470,7 +457,7 @@ impl Receiver {
                     }
                 }
             }
-            let targets = self.targets::<LANES>(lights, &points[..n], &drawn);
+            let targets = self.targets(lights, &points[..n], &drawn);
             for k in 0..n {
                 if !drawn[k] {
                     r.m += 1.0;
@@ -484,18 +471,13 @@ impl Receiver {
         r
     }
 
-    /// The targets of `points` (at most `N`) whose `wanted` is set, [`target`](Self::target)
+    /// The targets of `points` (at most [`LANES`]) whose `wanted` is set, [`target`](Self::target)
     /// of each bit for bit (0 for the others): those on point lights and untextured triangles
-    /// together in `N` lanes ([`lane_targets`](Self::lane_targets)), the others one by one.
+    /// together in lanes ([`lane_targets`](Self::lane_targets)), the others one by one.
     #[inline(always)]
-    fn targets<const N: usize>(
-        &self,
-        lights: &Lights,
-        points: &[LightPoint],
-        wanted: &[bool],
-    ) -> [f32; N] {
-        let mut lanes = LightLanes::<N>::new();
-        let mut point = [false; N];
+    fn targets(&self, lights: &Lights, points: &[LightPoint], wanted: &[bool]) -> [f32; LANES] {
+        let mut lanes = LightLanes::default();
+        let mut point = [false; LANES];
         for (k, p) in points.iter().enumerate() {
             if wanted[k] {
                 if let Some(light) = lights.lane_light(p) {
@@ -517,15 +499,15 @@ impl Receiver {
         targets
     }
 
-    /// The target function of `N` lights here, as [`target`](Self::target) computes it for
+    /// The target function of [`LANES`] lights here, as [`target`](Self::target) computes it for
     /// each (bit for bit), in one loop without branches on the lanes: each lane computes what
     /// `Lights::evaluate_geometry` gives for a point light and for a triangle, and keeps its
     /// own.
     #[inline(always)]
-    fn lane_targets<const N: usize>(&self, lanes: &LightLanes<N>) -> [f32; N] {
+    fn lane_targets(&self, lanes: &LightLanes) -> [f32; LANES] {
         let s = &self.surface;
         let wo_ng = self.wo.dot(s.ng);
-        let mut out = [0.0; N];
+        let mut out = [0.0; LANES];
         for (k, out) in out.iter_mut().enumerate() {
             let q = LightLanes::get_vec(&lanes.q, k);
             let e = LightLanes::get_vec(&lanes.e, k);
