@@ -143,16 +143,35 @@ pub enum Measure {
     /// Noise as the displayed image shows it: neither the shadows' relative noise nor the
     /// highlights' absolute noise dominates.
     Tonemapped,
+    /// Beyond the thesis: the standard deviation of a sample in radiance, estimated over the
+    /// pixel's neighbourhood ([`REGION`]: the mean of Eq. 11 over the pixels of the window),
+    /// over [`ABSOLUTE_SPAN`] times the image's mean of it ([`Adaptive::reference`]). With the
+    /// schedule, `P` grows about linearly with that deviation (from `min_spp / max_spp` up to
+    /// 1 at `ABSOLUTE_SPAN` times the mean), so samples go in proportion to it: the
+    /// allocation that minimises the image's mean squared error at a given number of samples
+    /// (Neyman's), with every pixel keeping `min_spp / max_spp` of it. The neighbourhood
+    /// because a pixel's own few samples estimate a heavy-tailed variance badly: the pixels
+    /// that caught a firefly would take the samples, those that have not yet would not.
+    Absolute,
 }
 
+/// [`Measure::Absolute`]: the multiple of the image's mean deviation at which a pixel is
+/// sampled at every iteration.
+pub const ABSOLUTE_SPAN: f32 = 8.0;
+
+/// [`Measure::Absolute`]: the radius in pixels of the square window whose variance a pixel's
+/// deviation is.
+pub const REGION: usize = 3;
+
 impl Measure {
-    pub const ALL: [Measure; 2] = [Measure::Luminance, Measure::Tonemapped];
+    pub const ALL: [Measure; 3] = [Measure::Luminance, Measure::Tonemapped, Measure::Absolute];
 
     /// Its name in configuration files.
     pub fn name(self) -> &'static str {
         match self {
             Measure::Luminance => "luminance",
             Measure::Tonemapped => "tonemapped",
+            Measure::Absolute => "absolute",
         }
     }
 }
@@ -197,9 +216,10 @@ pub fn pixel_variance(stats: &PixelStats) -> f32 {
     (v.x + v.y + v.z) * (1.0 / 3.0)
 }
 
-/// Eq. 12: `V = (sqrt(Var) + eps) / (L + eps)`.
+/// Eq. 12: `V = (sqrt(Var) + eps) / (L + eps)`, or another [`Measure`]. `reference` is the
+/// image's mean deviation ([`Adaptive::reference`]), read by [`Measure::Absolute`] only.
 #[inline]
-pub fn deviation(stats: &PixelStats, measure: Measure) -> f32 {
+pub fn deviation(stats: &PixelStats, measure: Measure, reference: f32) -> f32 {
     match measure {
         Measure::Luminance => {
             let l = luminance(stats.mean()).max(0.0);
@@ -209,6 +229,18 @@ pub fn deviation(stats: &PixelStats, measure: Measure) -> f32 {
             let l = luminance(stats.mean()).max(0.0);
             2.0 * pixel_variance(stats).max(0.0).sqrt() / ((1.0 + l) * (1.0 + l)) + EPSILON
         }
+        Measure::Absolute => absolute(pixel_variance(stats).max(0.0).sqrt(), reference),
+    }
+}
+
+/// [`Measure::Absolute`]'s `V` of a deviation `sigma` when the image's mean is `reference`.
+#[inline]
+fn absolute(sigma: f32, reference: f32) -> f32 {
+    if reference > 0.0 {
+        sigma / (ABSOLUTE_SPAN * reference) + EPSILON
+    } else {
+        // No pixel varies yet: every one is as noisy as the mean.
+        1.0 / ABSOLUTE_SPAN
     }
 }
 
@@ -232,11 +264,15 @@ pub struct Adaptive {
     /// `1 / mean(P)` over the pixels, set when the probabilities are fixed
     /// ([`AdaptiveConfig::budget`]'s samples per frame are `spp P scale`).
     pub scale: f32,
+    /// [`Measure::Absolute`]: each pixel's deviation of a sample over its neighbourhood, and
+    /// the image's mean of it ([`Adaptive::measure_image`]); empty and 0 otherwise.
+    pub regional: Vec<f32>,
+    pub reference: f32,
 }
 
 /// One iteration's decisions: which pixels are sampled.
 #[derive(Debug, Clone, Copy)]
-pub struct Schedule {
+pub struct Schedule<'a> {
     /// The first iteration this frame runs.
     pub iteration: u32,
     /// The end (exclusive) of the iterations this frame runs: `iteration + 1` except with
@@ -249,6 +285,10 @@ pub struct Schedule {
     pub min_spp: u32,
     pub max_spp: u32,
     pub measure: Measure,
+    /// [`Measure::Absolute`]: the pixels' regional deviations and their mean
+    /// ([`Adaptive::regional`]); empty and 0 with the other measures.
+    pub regional: &'a [f32],
+    pub reference: f32,
     /// Algorithm 2: pixels with a probability wait for the probability phase.
     pub combination: bool,
     pub cap: bool,
@@ -259,7 +299,7 @@ pub struct Schedule {
     pub seed: u64,
 }
 
-impl Schedule {
+impl<'a> Schedule<'a> {
     pub fn new(config: &AdaptiveConfig, iteration: u32, combination: bool, seed: u64) -> Self {
         Self {
             iteration,
@@ -269,10 +309,21 @@ impl Schedule {
             min_spp: config.min_spp,
             max_spp: config.max_spp,
             measure: config.measure,
+            regional: &[],
+            reference: 0.0,
             combination,
             cap: config.cap,
             carried_from: config.carried_from(),
             seed,
+        }
+    }
+
+    /// The schedule's measure `V` of pixel `pixel` with statistics `stats`.
+    #[inline]
+    fn v(&self, pixel: usize, stats: &PixelStats) -> f32 {
+        match self.regional.get(pixel) {
+            Some(&sigma) => absolute(sigma, self.reference),
+            None => deviation(stats, self.measure, self.reference),
         }
     }
 
@@ -314,7 +365,7 @@ impl Schedule {
         }
         if end == self.iteration + 1 {
             // One iteration (the thesis): `V` decides unless the pixel is below `min_spp`.
-            return u32::from(stats.n < self.min_spp || deviation(stats, self.measure) >= self.tau);
+            return u32::from(stats.n < self.min_spp || self.v(pixel, stats) >= self.tau);
         }
         // Several: first the iterations the pixel needs to reach `min_spp` (counted as one
         // sample each, `spp` per frame being a sample count of its own), then every
@@ -323,7 +374,7 @@ impl Schedule {
         let span = end - self.iteration;
         let below = self.min_spp.saturating_sub(stats.n).min(span);
         let from = self.iteration + below;
-        let v = deviation(stats, self.measure);
+        let v = self.v(pixel, stats);
         let (mut first, mut last) = (from, end);
         while first < last {
             let mid = first + (last - first) / 2;
@@ -343,6 +394,76 @@ impl Schedule {
 }
 
 impl Adaptive {
+    /// [`Measure::Absolute`]: sets [`regional`](Self::regional), each pixel's deviation of a
+    /// sample over the window of radius [`REGION`] around it (the square root of the mean of
+    /// Eq. 11 over the window's pixels with two samples or more), and
+    /// [`reference`](Self::reference), its mean over the image. Other measures clear them.
+    /// The same whatever the thread count (rows filtered apart, sums in fixed chunks).
+    pub fn measure_image(&mut self, measure: Measure, history: &[PixelStats], width: usize) {
+        use rayon::prelude::*;
+        if measure != Measure::Absolute || width == 0 {
+            self.regional.clear();
+            self.reference = 0.0;
+            return;
+        }
+        let height = history.len() / width;
+        // Each pixel's variance and whether it has one; their window sums along each row
+        // (a sliding sum), then along the columns.
+        let own: Vec<(f32, f32)> = history
+            .par_iter()
+            .map(|h| {
+                if h.n >= 2 {
+                    (pixel_variance(h).max(0.0), 1.0)
+                } else {
+                    (0.0, 0.0)
+                }
+            })
+            .collect();
+        let mut rows = vec![(0.0f32, 0.0f32); history.len()];
+        rows.par_chunks_mut(width)
+            .zip(own.par_chunks(width))
+            .for_each(|(out, row)| {
+                let (mut v, mut c) = (0.0f32, 0.0f32);
+                for &(dv, dc) in &row[..REGION.min(width)] {
+                    v += dv;
+                    c += dc;
+                }
+                for (x, o) in out.iter_mut().enumerate() {
+                    if let Some(&(dv, dc)) = row.get(x + REGION) {
+                        v += dv;
+                        c += dc;
+                    }
+                    if let Some(&(dv, dc)) = x.checked_sub(REGION + 1).map(|i| &row[i]) {
+                        v -= dv;
+                        c -= dc;
+                    }
+                    *o = (v.max(0.0), c.max(0.0));
+                }
+            });
+        self.regional.resize(history.len(), 0.0);
+        self.regional
+            .par_chunks_mut(width)
+            .enumerate()
+            .for_each(|(y, out)| {
+                let ys = y.saturating_sub(REGION)..(y + REGION + 1).min(height);
+                for (x, o) in out.iter_mut().enumerate() {
+                    let (v, c) = ys
+                        .clone()
+                        .map(|yy| rows[yy * width + x])
+                        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+                    *o = if c >= 0.5 { (v / c).sqrt() } else { 0.0 };
+                }
+            });
+        let sum: f64 = self
+            .regional
+            .par_chunks(4096)
+            .map(|chunk| chunk.iter().map(|&s| f64::from(s)).sum::<f64>())
+            .collect::<Vec<_>>()
+            .into_iter()
+            .sum();
+        self.reference = (sum / self.regional.len().max(1) as f64) as f32;
+    }
+
     /// Sizes the state for `pixels` pixels, every probability unfixed.
     pub fn reset(&mut self, pixels: usize) {
         self.probability.clear();
@@ -375,7 +496,8 @@ impl Adaptive {
         let (largest, carried) = history
             .par_iter()
             .zip(self.probability.par_iter())
-            .map(|(h, &p)| {
+            .enumerate()
+            .map(|(pixel, (h, &p))| {
                 if combination && p != NO_PROBABILITY {
                     if carried_from <= i {
                         (f32::INFINITY, false)
@@ -387,7 +509,13 @@ impl Adaptive {
                 } else if h.n < min {
                     (f32::INFINITY, false)
                 } else {
-                    (deviation(h, config.measure), false)
+                    (
+                        match self.regional.get(pixel) {
+                            Some(&sigma) => absolute(sigma, self.reference),
+                            None => deviation(h, config.measure, self.reference),
+                        },
+                        false,
+                    )
                 }
             })
             .reduce(
@@ -480,7 +608,7 @@ mod tests {
         let s = stats_of(&seq);
         assert!((s.mean().x - 5.5).abs() < 1e-6);
         assert!((pixel_variance(&s) - 55.0 / 6.0).abs() < 1e-5);
-        let v = deviation(&s, Measure::Luminance);
+        let v = deviation(&s, Measure::Luminance, 0.0);
         let expected = ((55.0f32 / 6.0).sqrt() + EPSILON) / (5.5 + EPSILON);
         assert!((v - expected).abs() < 1e-6, "{v} {expected}");
 
@@ -500,7 +628,7 @@ mod tests {
         // Luminance of the mean (1, 1, 2).
         let l = luminance(Vec3::new(1.0, 1.0, 2.0));
         let expected = (((5.0 * k) / 3.0).sqrt() + EPSILON) / (l + EPSILON);
-        assert!((deviation(&s, Measure::Luminance) - expected).abs() < 1e-5);
+        assert!((deviation(&s, Measure::Luminance, 0.0) - expected).abs() < 1e-5);
 
         // A large offset does not break the running statistics (Welford, not sum of squares).
         let seq: Vec<Vec3> = (0..1000)
@@ -512,7 +640,7 @@ mod tests {
         // One sample has no variance; a black pixel has V = 1.
         assert_eq!(pixel_variance(&stats_of(&[Vec3::ONE])), 0.0);
         assert_eq!(
-            deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Luminance),
+            deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Luminance, 0.0),
             1.0
         );
 
@@ -524,7 +652,7 @@ mod tests {
         let tm: Vec<f32> = seq.iter().map(|v| v.x / (1.0 + v.x)).collect();
         let mean = tm.iter().sum::<f32>() / tm.len() as f32;
         let sd = (tm.iter().map(|t| (t - mean).powi(2)).sum::<f32>() / 999.0).sqrt();
-        let v = deviation(&stats_of(&seq), Measure::Tonemapped);
+        let v = deviation(&stats_of(&seq), Measure::Tonemapped, 0.0);
         assert!(
             (v - (2.0 * sd + EPSILON)).abs() < 1e-2 * v,
             "{v} vs {}",
@@ -533,10 +661,113 @@ mod tests {
         // Unlike Eq. 12, a dark pixel's noise is not inflated, a bright one's is damped.
         let dark = stats_of(&[Vec3::splat(0.01), Vec3::splat(0.03)]);
         let bright = stats_of(&[Vec3::splat(9.0), Vec3::splat(11.0)]);
-        assert!(deviation(&dark, Measure::Luminance) > deviation(&bright, Measure::Luminance));
-        assert!(deviation(&dark, Measure::Tonemapped) < 0.05);
-        assert!(deviation(&bright, Measure::Tonemapped) < 0.05);
-        assert!(deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Tonemapped) <= EPSILON);
+        assert!(
+            deviation(&dark, Measure::Luminance, 0.0) > deviation(&bright, Measure::Luminance, 0.0)
+        );
+        assert!(deviation(&dark, Measure::Tonemapped, 0.0) < 0.05);
+        assert!(deviation(&bright, Measure::Tonemapped, 0.0) < 0.05);
+        assert!(deviation(&stats_of(&[Vec3::ZERO; 3]), Measure::Tonemapped, 0.0) <= EPSILON);
+    }
+
+    /// [`Measure::Absolute`]: each pixel's deviation is the square root of the mean variance
+    /// over its window (pixels below two samples left out), the reference their mean over the
+    /// image, the same for any thread count; a pixel at `ABSOLUTE_SPAN` times the mean is
+    /// sampled at every iteration, one at the mean from about `1 / ABSOLUTE_SPAN` of the
+    /// schedule on.
+    #[test]
+    fn the_absolute_measure_is_the_windows_deviation_over_the_images() {
+        let (w, h) = (23, 11);
+        // Variance 4 on the right of x = 12, 0 on the left, 9 along row 2; a column of
+        // one-sample pixels.
+        let var_at = |x: usize, y: usize| match (x, y) {
+            (_, 2) => 9.0f32,
+            (x, _) if x > 12 => 4.0,
+            _ => 0.0,
+        };
+        let history: Vec<PixelStats> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let var = var_at(x, y);
+                let n = if x == 5 { 1 } else { 8 };
+                PixelStats {
+                    n,
+                    radiance_m2: Vec3::splat(var * (n - 1) as f32),
+                    ..PixelStats::default()
+                }
+            })
+            .collect();
+        let measured = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut a = Adaptive::default();
+            pool.install(|| a.measure_image(Measure::Absolute, &history, w));
+            a
+        };
+        let a = measured(1);
+        for t in [2, 3, 7] {
+            let b = measured(t);
+            assert_eq!(a.regional, b.regional);
+            assert_eq!(a.reference.to_bits(), b.reference.to_bits());
+        }
+        // By brute force: every window of every pixel, clipped at the image's edges.
+        let mut sum = 0.0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let (mut v, mut c) = (0.0f64, 0.0f64);
+                for yy in y.saturating_sub(REGION)..(y + REGION + 1).min(h) {
+                    for xx in x.saturating_sub(REGION)..(x + REGION + 1).min(w) {
+                        if xx != 5 {
+                            v += f64::from(var_at(xx, yy));
+                            c += 1.0;
+                        }
+                    }
+                }
+                let expected = (v / c).sqrt();
+                sum += expected;
+                let got = a.regional[y * w + x];
+                assert!(
+                    (f64::from(got) - expected).abs() < 1e-5,
+                    "({x}, {y}): {got} vs {expected}"
+                );
+            }
+        }
+        assert!((f64::from(a.reference) - sum / (w * h) as f64).abs() < 1e-5);
+        assert_eq!(a.regional[(h - 1) * w + 3], 0.0);
+        assert!((a.regional[(h - 1) * w + w - 1] - 2.0).abs() < 1e-6);
+
+        // Other measures do not need it.
+        let mut b = a.clone();
+        b.measure_image(Measure::Tonemapped, &history, w);
+        assert!(b.regional.is_empty() && b.reference == 0.0);
+
+        // Through the schedule: V is the regional deviation over ABSOLUTE_SPAN references.
+        let config = AdaptiveConfig {
+            enabled: true,
+            measure: Measure::Absolute,
+            ..AdaptiveConfig::default()
+        };
+        let at = |sigma: f32, iteration: u32| {
+            let regional = [sigma];
+            let mut s = Schedule::new(&config, iteration, false, 1);
+            s.regional = &regional;
+            s.reference = 0.5;
+            s.wants(0, &history[0], NO_PROBABILITY)
+        };
+        let (min, max) = (config.min_spp, config.max_spp);
+        for i in min..max {
+            assert!(at(ABSOLUTE_SPAN * 0.5, i), "every iteration at the span");
+            assert!(!at(0.0, i), "no variance: only min_spp samples");
+        }
+        // At the mean: sampled from 1 - 1 / ABSOLUTE_SPAN of the schedule on.
+        let first = (min..max).find(|&i| at(0.5, i)).unwrap();
+        let expected = min as f32 + (1.0 - 1.0 / ABSOLUTE_SPAN) * (max - min) as f32;
+        assert!(
+            (first as f32 - expected).abs() <= 1.0,
+            "{first} vs {expected}"
+        );
+        assert!((first..max).all(|i| at(0.5, i)));
     }
 
     #[test]

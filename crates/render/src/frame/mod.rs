@@ -406,6 +406,14 @@ impl Pipeline {
             let previous = self.previous_camera.as_ref();
             let (r, primary_s, lighting_s) = if techniques {
                 let a = &frame.adaptive;
+                if a.enabled && self.adaptive.iteration < a.max_spp {
+                    // V is read during the schedule only.
+                    self.adaptive.measure_image(
+                        a.measure,
+                        &self.history,
+                        self.gbuffer.width as usize,
+                    );
+                }
                 if a.enabled && a.skip_empty {
                     let busy =
                         self.adaptive
@@ -427,6 +435,8 @@ impl Pipeline {
                         frame.reprojection.enabled,
                         self.epoch_config.seed,
                     );
+                    s.regional = &self.adaptive.regional;
+                    s.reference = self.adaptive.reference;
                     if a.budget && !self.after_move {
                         if s.iteration < s.max_spp {
                             s.end = self.adaptive.budget_end(&s, &self.history, pixels);
@@ -839,7 +849,7 @@ impl Plan for Uniform {
 struct Planned<'a> {
     history: &'a [PixelStats],
     probability: &'a [f32],
-    schedule: Option<Schedule>,
+    schedule: Option<Schedule<'a>>,
     /// The frame after a reprojection, with the aliasing test's tolerance: every pixel gets
     /// its primary ray (the test needs the new G-buffer), and adaptive sampling decides on
     /// the states that survive the test.
