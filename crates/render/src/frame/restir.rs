@@ -458,13 +458,25 @@ impl Receiver {
                 }
             }
             let targets = self.targets(lights, &points[..n], &drawn);
+            // Reservoir::update of each candidate in order, without branches: whether a
+            // candidate survives is a coin toss the branch predictor cannot learn, so the
+            // survivor's index is selected and its point copied once after the block.
+            let mut w = [0.0f32; LANES];
+            for k in 0..LANES {
+                w[k] = targets[k] / block[k].0;
+            }
+            let mut survivor = LANES;
             for k in 0..n {
-                if !drawn[k] {
-                    r.m += 1.0;
-                    continue;
-                }
-                let ((density, u), t) = (block[k], targets[k]);
-                r.update(points[k], t / density, t, 1.0, u);
+                r.m += 1.0;
+                let valid = drawn[k] && w[k] > 0.0 && w[k].is_finite();
+                let sum = r.w_sum + w[k];
+                r.w_sum = if valid { sum } else { r.w_sum };
+                let take = valid && block[k].1 * r.w_sum < w[k];
+                survivor = if take { k } else { survivor };
+                r.target = if take { targets[k] } else { r.target };
+            }
+            if survivor < LANES {
+                r.sample = points[survivor];
             }
         }
         r.finish(r.m);
