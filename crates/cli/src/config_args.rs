@@ -114,9 +114,9 @@ pub struct ConfigArgs {
     pub max_spp: Option<u32>,
 
     /// Adaptive sampling: the measure V of a pixel's noise, luminance (the thesis's Eq. 12:
-    /// relative), tonemapped (as displayed) or absolute
-    /// (in radiance, relative to the image's mean: samples in proportion to the noise) [default:
-    /// luminance].
+    /// relative), tonemapped (as displayed), absolute (in radiance, relative to the image's
+    /// mean: samples in proportion to the noise) or error (absolute over the pixel's samples:
+    /// the combination's best) [default: luminance].
     #[arg(long, value_name = "MEASURE", value_parser = parse_measure)]
     pub adaptive_measure: Option<Measure>,
 

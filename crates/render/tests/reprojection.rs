@@ -581,3 +581,69 @@ fn seed_000_display_modes_show_the_techniques() {
         );
     }
 }
+
+/// The combination with the `error` measure and frames of a budget: after a move the new
+/// pixels (holes, a few samples each) take most of the frames' samples and the carried ones
+/// (dozens each) few, where the thesis's Algorithm 2 gives each new pixel one per frame.
+#[test]
+fn the_error_measure_samples_the_new_pixels_after_a_move() {
+    use pathlight_render::frame::adaptive::Measure;
+    let world = cornell();
+    let path = views(
+        &world,
+        CameraPath {
+            path: PathKind::Translation,
+            offset: [0.2, 0.0, 0.0],
+            steps: 1,
+            ..CameraPath::default()
+        },
+    );
+    let pixels = 40 * 30;
+    let mut cfg = with_view(&config(40, 30, 1), path[0].clone());
+    cfg.frame.reprojection.fresh_spp = 8;
+    cfg.frame.adaptive = AdaptiveConfig {
+        enabled: true,
+        cap: true,
+        measure: Measure::Error,
+        budget: true,
+        ..AdaptiveConfig::default()
+    };
+    let mut pipeline = warm(&world, &cfg, 48);
+    pipeline.set_config(&with_view(&cfg, path[1].clone()));
+    pipeline.render_frame(&world);
+    let before: Vec<u32> = pipeline.history.iter().map(|h| h.n).collect();
+    let new: Vec<bool> = before.iter().map(|&n| n <= 8).collect();
+    let (holes, carried) = (
+        new.iter().filter(|&&b| b).count(),
+        before.iter().filter(|&&n| n > 24).count(),
+    );
+    assert!(
+        holes > 20 && carried > pixels / 3,
+        "{holes} new, {carried} carried"
+    );
+    let mut traced = 0;
+    for _ in 0..3 {
+        traced += pipeline.render_frame(&world).samples;
+    }
+    // Frames of a budget: about one sample per pixel each (the budget counts the schedule's
+    // samples; the repair of pixels whose states the edge test drops comes on top).
+    let uniform = 3 * pixels as u64;
+    assert!(
+        traced <= uniform + uniform / 10 && traced >= uniform - uniform / 3,
+        "{traced} samples in 3 frames"
+    );
+    // (A carried state a later sample disagrees with is dropped: its pixel starts again.)
+    let added = |pick: &dyn Fn(usize) -> bool| {
+        let (sum, count) = (0..pixels)
+            .filter(|&p| pick(p) && pipeline.history[p].n >= before[p])
+            .fold((0u64, 0u64), |(s, c), p| {
+                (s + u64::from(pipeline.history[p].n - before[p]), c + 1)
+            });
+        sum as f64 / count as f64
+    };
+    let (to_new, to_carried) = (added(&|p| new[p]), added(&|p| before[p] > 24));
+    assert!(
+        to_new > 3.0 && to_new > 4.0 * to_carried,
+        "samples per new pixel {to_new}, per carried pixel {to_carried}"
+    );
+}

@@ -39,6 +39,15 @@
 //! samples per frame on average (the integer part, and one more with the fraction's
 //! probability): the thesis's distribution of samples, in frames of uniform cost.
 //!
+//! Beyond the thesis, two more measures ([`Measure`]): `absolute`, a pixel's deviation in
+//! radiance estimated over its 7x7 neighbourhood relative to the image's mean (with the
+//! schedule, samples in proportion to the deviation: the allocation that minimises the
+//! squared error at a given number of samples), and `error`, the same over the pixel's sample
+//! count, `sigma / n` (the pixels whose next sample lowers the squared error most first). With
+//! `budget` and forward reprojection, `error` is the combination's best setting: after a move
+//! the new pixels, with a few samples, take most of each frame's samples and the carried ones,
+//! with hundreds, few.
+//!
 //! With forward reprojection on as well, the pipeline runs the thesis's combination
 //! (Algorithm 2): reprojected pixels bring their samples, statistics and probability; after a
 //! camera move the schedule restarts, and pixels that already have a probability take no
@@ -153,6 +162,13 @@ pub enum Measure {
     /// because a pixel's own few samples estimate a heavy-tailed variance badly: the pixels
     /// that caught a firefly would take the samples, those that have not yet would not.
     Absolute,
+    /// Beyond the thesis: [`Absolute`](Self::Absolute)'s deviation divided by the pixel's
+    /// sample count, `sigma / n`, over [`ABSOLUTE_SPAN`] times the image's mean of it: the
+    /// pixels whose next sample lowers the image's squared error the most (`sigma^2 / n^2`)
+    /// first. On a still camera the same allocation (in proportion to `sigma`, reached as
+    /// the counts grow); after a move in the combination, where carried pixels hold hundreds
+    /// of samples and new ones a few, the new ones take the samples.
+    Error,
 }
 
 /// [`Measure::Absolute`]: the multiple of the image's mean deviation at which a pixel is
@@ -164,7 +180,12 @@ pub const ABSOLUTE_SPAN: f32 = 8.0;
 pub const REGION: usize = 3;
 
 impl Measure {
-    pub const ALL: [Measure; 3] = [Measure::Luminance, Measure::Tonemapped, Measure::Absolute];
+    pub const ALL: [Measure; 4] = [
+        Measure::Luminance,
+        Measure::Tonemapped,
+        Measure::Absolute,
+        Measure::Error,
+    ];
 
     /// Its name in configuration files.
     pub fn name(self) -> &'static str {
@@ -172,6 +193,7 @@ impl Measure {
             Measure::Luminance => "luminance",
             Measure::Tonemapped => "tonemapped",
             Measure::Absolute => "absolute",
+            Measure::Error => "error",
         }
     }
 }
@@ -230,6 +252,10 @@ pub fn deviation(stats: &PixelStats, measure: Measure, reference: f32) -> f32 {
             2.0 * pixel_variance(stats).max(0.0).sqrt() / ((1.0 + l) * (1.0 + l)) + EPSILON
         }
         Measure::Absolute => absolute(pixel_variance(stats).max(0.0).sqrt(), reference),
+        Measure::Error => absolute(
+            pixel_variance(stats).max(0.0).sqrt() / stats.n.max(1) as f32,
+            reference,
+        ),
     }
 }
 
@@ -401,12 +427,13 @@ impl Adaptive {
     /// The same whatever the thread count (rows filtered apart, sums in fixed chunks).
     pub fn measure_image(&mut self, measure: Measure, history: &[PixelStats], width: usize) {
         use rayon::prelude::*;
-        if measure != Measure::Absolute || width == 0 {
+        if !matches!(measure, Measure::Absolute | Measure::Error) || width == 0 {
             self.regional.clear();
             self.reference = 0.0;
             return;
         }
         let height = history.len() / width;
+        let per_sample = measure == Measure::Error;
         // Each pixel's variance and whether it has one; their window sums along each row
         // (a sliding sum), then along the columns.
         let own: Vec<(f32, f32)> = history
@@ -452,6 +479,9 @@ impl Adaptive {
                         .map(|yy| rows[yy * width + x])
                         .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
                     *o = if c >= 0.5 { (v / c).sqrt() } else { 0.0 };
+                    if per_sample {
+                        *o /= history[y * width + x].n.max(1) as f32;
+                    }
                 }
             });
         let sum: f64 = self
