@@ -75,6 +75,19 @@ fn reproject(
     (history, report)
 }
 
+/// The views of a sideways move by `offset` in `steps` steps.
+fn sideways(world: &World, offset: f32, steps: u32) -> Vec<CameraConfig> {
+    views(
+        world,
+        CameraPath {
+            path: PathKind::Translation,
+            offset: [offset, 0.0, 0.0],
+            steps,
+            ..CameraPath::default()
+        },
+    )
+}
+
 /// The views of `path` (over [`CameraPath::default`]).
 fn views(world: &World, path: CameraPath) -> Vec<CameraConfig> {
     world.path_views(&path)
@@ -293,15 +306,7 @@ fn edges(world: &World, camera: &pathlight_render::Camera, width: u32, height: u
 #[test]
 fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
     let world = cornell();
-    let path = views(
-        &world,
-        CameraPath {
-            path: PathKind::Translation,
-            offset: [0.1, 0.0, 0.0],
-            steps: 2,
-            ..CameraPath::default()
-        },
-    );
+    let path = sideways(&world, 0.1, 2);
     let frames = 64;
     for samples in [1, 4] {
         let cfg = with_view(&config(48, 36, samples), path[0].clone());
@@ -369,15 +374,7 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
 #[test]
 fn fresh_spp_fills_the_holes_of_a_move_at_once() {
     let world = cornell();
-    let path = views(
-        &world,
-        CameraPath {
-            path: PathKind::Translation,
-            offset: [0.2, 0.0, 0.0],
-            steps: 1,
-            ..CameraPath::default()
-        },
-    );
+    let path = sideways(&world, 0.2, 1);
     let frames = 16;
     let pixels = 40 * 30;
     let mut counts = Vec::new();
@@ -589,15 +586,7 @@ fn seed_000_display_modes_show_the_techniques() {
 fn the_error_measure_samples_the_new_pixels_after_a_move() {
     use pathlight_render::frame::adaptive::Measure;
     let world = cornell();
-    let path = views(
-        &world,
-        CameraPath {
-            path: PathKind::Translation,
-            offset: [0.2, 0.0, 0.0],
-            steps: 1,
-            ..CameraPath::default()
-        },
-    );
+    let path = sideways(&world, 0.2, 1);
     let pixels = 40 * 30;
     let mut cfg = with_view(&config(40, 30, 1), path[0].clone());
     cfg.frame.reprojection.fresh_spp = 8;
