@@ -171,12 +171,12 @@ pub enum Measure {
     Error,
 }
 
-/// [`Measure::Absolute`]: the multiple of the image's mean deviation at which a pixel is
-/// sampled at every iteration.
+/// [`Measure::Absolute`] and [`Measure::Error`]: the multiple of the image's mean at which a
+/// pixel is sampled at every iteration.
 pub const ABSOLUTE_SPAN: f32 = 8.0;
 
-/// [`Measure::Absolute`]: the radius in pixels of the square window whose variance a pixel's
-/// deviation is.
+/// [`Measure::Absolute`] and [`Measure::Error`]: the radius in pixels of the square window
+/// whose variance a pixel's deviation is.
 pub const REGION: usize = 3;
 
 impl Measure {
@@ -238,8 +238,9 @@ pub fn pixel_variance(stats: &PixelStats) -> f32 {
     (v.x + v.y + v.z) * (1.0 / 3.0)
 }
 
-/// Eq. 12: `V = (sqrt(Var) + eps) / (L + eps)`, or another [`Measure`]. `reference` is the
-/// image's mean deviation ([`Adaptive::reference`]), read by [`Measure::Absolute`] only.
+/// Eq. 12: `V = (sqrt(Var) + eps) / (L + eps)`, or another [`Measure`] of the pixel's own
+/// samples. `reference` is the image's mean deviation ([`Adaptive::reference`]), read by
+/// [`Measure::Absolute`] and [`Measure::Error`] only.
 #[inline]
 pub fn deviation(stats: &PixelStats, measure: Measure, reference: f32) -> f32 {
     match measure {
@@ -256,6 +257,23 @@ pub fn deviation(stats: &PixelStats, measure: Measure, reference: f32) -> f32 {
             pixel_variance(stats).max(0.0).sqrt() / stats.n.max(1) as f32,
             reference,
         ),
+    }
+}
+
+/// `V` of pixel `pixel`: from its regional deviation ([`Adaptive::regional`], for
+/// [`Measure::Absolute`] and [`Measure::Error`]) where there is one, else from its own
+/// statistics.
+#[inline]
+fn measured(
+    regional: &[f32],
+    reference: f32,
+    pixel: usize,
+    stats: &PixelStats,
+    measure: Measure,
+) -> f32 {
+    match regional.get(pixel) {
+        Some(&sigma) => absolute(sigma, reference),
+        None => deviation(stats, measure, reference),
     }
 }
 
@@ -290,8 +308,9 @@ pub struct Adaptive {
     /// `1 / mean(P)` over the pixels, set when the probabilities are fixed
     /// ([`AdaptiveConfig::budget`]'s samples per frame are `spp P scale`).
     pub scale: f32,
-    /// [`Measure::Absolute`]: each pixel's deviation of a sample over its neighbourhood, and
-    /// the image's mean of it ([`Adaptive::measure_image`]); empty and 0 otherwise.
+    /// [`Measure::Absolute`]: each pixel's deviation of a sample over its neighbourhood
+    /// ([`Measure::Error`]: divided by the pixel's sample count), and the image's mean of it
+    /// ([`Adaptive::measure_image`]); empty and 0 with the other measures.
     pub regional: Vec<f32>,
     pub reference: f32,
 }
@@ -311,8 +330,8 @@ pub struct Schedule<'a> {
     pub min_spp: u32,
     pub max_spp: u32,
     pub measure: Measure,
-    /// [`Measure::Absolute`]: the pixels' regional deviations and their mean
-    /// ([`Adaptive::regional`]); empty and 0 with the other measures.
+    /// [`Measure::Absolute`] and [`Measure::Error`]: the pixels' regional deviations and
+    /// their mean ([`Adaptive::regional`]); empty and 0 with the other measures.
     pub regional: &'a [f32],
     pub reference: f32,
     /// Algorithm 2: pixels with a probability wait for the probability phase.
@@ -347,10 +366,7 @@ impl<'a> Schedule<'a> {
     /// The schedule's measure `V` of pixel `pixel` with statistics `stats`.
     #[inline]
     fn v(&self, pixel: usize, stats: &PixelStats) -> f32 {
-        match self.regional.get(pixel) {
-            Some(&sigma) => absolute(sigma, self.reference),
-            None => deviation(stats, self.measure, self.reference),
-        }
+        measured(self.regional, self.reference, pixel, stats, self.measure)
     }
 
     /// Whether pixel `pixel`, with statistics `stats` and probability `probability`, takes a
@@ -422,8 +438,9 @@ impl<'a> Schedule<'a> {
 impl Adaptive {
     /// [`Measure::Absolute`]: sets [`regional`](Self::regional), each pixel's deviation of a
     /// sample over the window of radius [`REGION`] around it (the square root of the mean of
-    /// Eq. 11 over the window's pixels with two samples or more), and
-    /// [`reference`](Self::reference), its mean over the image. Other measures clear them.
+    /// Eq. 11 over the window's pixels with two samples or more; [`Measure::Error`]: divided
+    /// by the pixel's sample count), and [`reference`](Self::reference), its mean over the
+    /// image. Other measures clear them.
     /// The same whatever the thread count (rows filtered apart, sums in fixed chunks).
     pub fn measure_image(&mut self, measure: Measure, history: &[PixelStats], width: usize) {
         use rayon::prelude::*;
@@ -540,10 +557,7 @@ impl Adaptive {
                     (f32::INFINITY, false)
                 } else {
                     (
-                        match self.regional.get(pixel) {
-                            Some(&sigma) => absolute(sigma, self.reference),
-                            None => deviation(h, config.measure, self.reference),
-                        },
+                        measured(&self.regional, self.reference, pixel, h, config.measure),
                         false,
                     )
                 }
@@ -700,7 +714,8 @@ mod tests {
     }
 
     /// [`Measure::Absolute`]: each pixel's deviation is the square root of the mean variance
-    /// over its window (pixels below two samples left out), the reference their mean over the
+    /// over its window (pixels below two samples left out; [`Measure::Error`]: over the
+    /// pixel's sample count), the reference their mean over the
     /// image, the same for any thread count; a pixel at `ABSOLUTE_SPAN` times the mean is
     /// sampled at every iteration, one at the mean from about `1 / ABSOLUTE_SPAN` of the
     /// schedule on.
@@ -766,6 +781,13 @@ mod tests {
         assert!((f64::from(a.reference) - sum / (w * h) as f64).abs() < 1e-5);
         assert_eq!(a.regional[(h - 1) * w + 3], 0.0);
         assert!((a.regional[(h - 1) * w + w - 1] - 2.0).abs() < 1e-6);
+
+        // The error measure: the same over each pixel's sample count.
+        let mut e = Adaptive::default();
+        e.measure_image(Measure::Error, &history, w);
+        for (i, h) in history.iter().enumerate() {
+            assert_eq!(e.regional[i], a.regional[i] / h.n as f32);
+        }
 
         // Other measures do not need it.
         let mut b = a.clone();
