@@ -52,7 +52,9 @@
 //! (Algorithm 2): reprojected pixels bring their samples, statistics and probability; after a
 //! camera move the schedule restarts, and pixels that already have a probability take no
 //! samples until iteration `max_spp`, when every pixel's probability is set again from its
-//! sample count. The thesis's known flaw follows: a reprojected pixel that had no probability
+//! sample count (a pixel that brought a probability but kept fewer than `min_spp` samples,
+//! its states dropped by the aliasing test, counts as new: the thesis does not say, and
+//! waiting would leave it black for the whole schedule). The thesis's known flaw follows: a reprojected pixel that had no probability
 //! yet can go past `max_spp` samples (and so gets a probability above 1). [`AdaptiveConfig::cap`]
 //! is the fix: no schedule samples for a pixel that has `max_spp` already, and pixels keep a
 //! probability they brought. The frame that fixes the probabilities reports how many ended
@@ -288,6 +290,16 @@ fn absolute(sigma: f32, reference: f32) -> f32 {
     }
 }
 
+/// The combination: whether a pixel with probability `probability` and `n` samples is a
+/// carried one (it brought a probability from the previous view), which waits or takes samples
+/// with its probability. One that brought a probability but kept fewer than `min_spp`
+/// samples (the aliasing test dropped its states) is new again and follows the schedule, as
+/// a pixel nothing landed on does; otherwise it would wait, black, until iteration `max_spp`.
+#[inline]
+fn carried(probability: f32, n: u32, min_spp: u32) -> bool {
+    probability != NO_PROBABILITY && n >= min_spp
+}
+
 /// The threshold `tau` at iteration `iteration` (1 until `min_spp`, then falling by
 /// `1 / (max_spp - min_spp)` per iteration; only read before `max_spp`).
 #[inline]
@@ -397,7 +409,7 @@ impl<'a> Schedule<'a> {
             return u32::from(draw(self.iteration) < probability);
         }
         let end = self.end.min(self.max_spp);
-        if self.combination && probability != NO_PROBABILITY {
+        if self.combination && carried(probability, stats.n, self.min_spp) {
             return (self.iteration.max(self.carried_from)..end)
                 .map(|i| u32::from(draw(i) < probability))
                 .sum();
@@ -545,7 +557,7 @@ impl Adaptive {
             .zip(self.probability.par_iter())
             .enumerate()
             .map(|(pixel, (h, &p))| {
-                if combination && p != NO_PROBABILITY {
+                if combination && carried(p, h.n, min) {
                     if carried_from <= i {
                         (f32::INFINITY, false)
                     } else {
@@ -1114,7 +1126,7 @@ mod tests {
         // Algorithm 2: during the schedule a pixel that brought a probability takes nothing;
         // with `keep_sampling` it takes a sample with that probability at each iteration
         // from `keep_sampling_after` on.
-        let stats = PixelStats::one(Vec3::ONE, Vec3::ZERO);
+        let stats = stats_of(&[Vec3::ONE; 8]);
         for (keep_sampling, after) in [(false, 0), (true, 0), (true, 10), (true, 40)] {
             let config = AdaptiveConfig {
                 enabled: true,
@@ -1143,6 +1155,13 @@ mod tests {
                 assert_eq!(taken, 0.0);
             } else {
                 assert!(taken > 1000.0);
+            }
+            // One that brought a probability but kept fewer than `min_spp` samples (its
+            // states dropped) is new again: sampled at every iteration until it has them.
+            let lost = PixelStats::one(Vec3::ONE, Vec3::ZERO);
+            for iteration in 0..32 {
+                let s = Schedule::new(&config, iteration, true, 9);
+                assert!(s.wants(0, &lost, p) && s.wants(1, &PixelStats::default(), p));
             }
         }
     }

@@ -705,7 +705,8 @@ impl Pipeline {
 }
 
 /// Reprojection with `fresh_spp`, between the lighting and accumulation passes: a pixel
-/// sampled this frame whose states the accumulation pass will drop (the aliasing test after a
+/// sampled this frame (or any pixel in the frame of a move) whose states the accumulation
+/// pass will drop (the aliasing test after a
 /// move, a carried state its new sample disagrees with) would be left with this frame's
 /// samples alone, one where a hole takes `fresh_spp` (the lighting pass counted the states
 /// before the test, which needs the neighbours' G-buffer pixels). This pass traces the
@@ -743,7 +744,10 @@ impl Repair {
             .zip(lighting.par_iter())
             .enumerate()
             .map(|(p, (need, l))| {
-                *need = if l.stats.n == 0 {
+                // A pixel not sampled has no G-buffer pixel of this frame to test, except in
+                // the frame of a move, where every pixel is traced (the combination's carried
+                // pixels wait then, and their states may be dropped all the same).
+                *need = if l.stats.n == 0 && !after_move {
                     0
                 } else {
                     let kept =
