@@ -325,6 +325,10 @@ pub struct Adaptive {
     /// ([`Adaptive::measure_image`]); empty and 0 with the other measures.
     pub regional: Vec<f32>,
     pub reference: f32,
+    /// Scratch of [`measure_image`](Self::measure_image): each pixel's variance and whether it
+    /// has one, then their sums along each row's window.
+    own: Vec<(f32, f32)>,
+    rows: Vec<(f32, f32)>,
 }
 
 /// One iteration's decisions: which pixels are sampled.
@@ -465,17 +469,18 @@ impl Adaptive {
         let per_sample = measure == Measure::Error;
         // Each pixel's variance and whether it has one; their window sums along each row
         // (a sliding sum), then along the columns.
-        let own: Vec<(f32, f32)> = history
-            .par_iter()
-            .map(|h| {
-                if h.n >= 2 {
+        let (own, rows) = (&mut self.own, &mut self.rows);
+        own.resize(history.len(), (0.0, 0.0));
+        own.par_iter_mut()
+            .zip(history.par_iter())
+            .for_each(|(o, h)| {
+                *o = if h.n >= 2 {
                     (pixel_variance(h).max(0.0), 1.0)
                 } else {
                     (0.0, 0.0)
-                }
-            })
-            .collect();
-        let mut rows = vec![(0.0f32, 0.0f32); history.len()];
+                };
+            });
+        rows.resize(history.len(), (0.0, 0.0));
         rows.par_chunks_mut(width)
             .zip(own.par_chunks(width))
             .for_each(|(out, row)| {
@@ -496,6 +501,7 @@ impl Adaptive {
                     *o = (v.max(0.0), c.max(0.0));
                 }
             });
+        let rows = &self.rows;
         self.regional.resize(history.len(), 0.0);
         self.regional
             .par_chunks_mut(width)

@@ -216,18 +216,24 @@ impl Reservoir {
     /// uniform in [0, 1): it survives with probability `w / w_sum`. Returns whether it did.
     #[inline]
     pub fn update(&mut self, sample: LightPoint, w: f32, target: f32, m: f32, u: f32) -> bool {
-        self.m += m;
-        if !(w > 0.0 && w.is_finite()) {
-            return false;
-        }
-        self.w_sum += w;
-        if u * self.w_sum < w {
+        let survives = self.admit(w, target, m, u);
+        if survives {
             self.sample = sample;
-            self.target = target;
-            true
-        } else {
-            false
         }
+        survives
+    }
+
+    /// [`update`](Self::update) but for the sample itself, which the caller keeps when this
+    /// returns true; without branches (whether a candidate survives is a coin toss a branch
+    /// predictor cannot learn).
+    #[inline]
+    fn admit(&mut self, w: f32, target: f32, m: f32, u: f32) -> bool {
+        self.m += m;
+        let valid = w > 0.0 && w.is_finite();
+        self.w_sum = if valid { self.w_sum + w } else { self.w_sum };
+        let survives = valid && u * self.w_sum < w;
+        self.target = if survives { target } else { self.target };
+        survives
     }
 
     /// Sets `W = w_sum / (z p_hat(y))` (0 without a sample or with `z` = 0).
@@ -458,22 +464,20 @@ impl Receiver {
                 }
             }
             let targets = self.targets(lights, &points[..n], &drawn);
-            // Reservoir::update of each candidate in order, without branches: whether a
-            // candidate survives is a coin toss the branch predictor cannot learn, so the
-            // survivor's index is selected and its point copied once after the block.
-            let mut w = [0.0f32; LANES];
-            for k in 0..LANES {
-                w[k] = targets[k] / block[k].0;
-            }
+            // Reservoir::update of each candidate in order, the survivor's point copied once
+            // after the block (a candidate not drawn counts with weight 0).
+            let w: [f32; LANES] = std::array::from_fn(|k| {
+                if drawn[k] {
+                    targets[k] / block[k].0
+                } else {
+                    0.0
+                }
+            });
             let mut survivor = LANES;
             for k in 0..n {
-                r.m += 1.0;
-                let valid = drawn[k] && w[k] > 0.0 && w[k].is_finite();
-                let sum = r.w_sum + w[k];
-                r.w_sum = if valid { sum } else { r.w_sum };
-                let take = valid && block[k].1 * r.w_sum < w[k];
-                survivor = if take { k } else { survivor };
-                r.target = if take { targets[k] } else { r.target };
+                if r.admit(w[k], targets[k], 1.0, block[k].1) {
+                    survivor = k;
+                }
             }
             if survivor < LANES {
                 r.sample = points[survivor];
