@@ -468,6 +468,8 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         max_spp: 8,
         keep_sampling: true,
         keep_sampling_after: 3,
+        measure: pathlight_render::frame::adaptive::Measure::Error,
+        budget: true,
         ..AdaptiveConfig::default()
     };
     tuned.frame.reprojection = ReprojectionConfig {
