@@ -78,22 +78,20 @@ pub struct LightSample {
     pub delta: bool,
 }
 
-/// A light as seed 004's SIMD lanes evaluate it ([`Lights::lane_light`]).
-#[derive(Debug, Clone, Copy)]
+/// A light point as seed 004's SIMD lanes evaluate it ([`Lights::lane_light`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LaneLight {
     Point {
         position: Vec3,
         intensity: Vec3,
         inv_range: f32,
     },
-    /// An untextured emissive triangle at the chosen `point`, with its selection probability.
+    /// A point of an emissive triangle, with the emission there (its texture evaluated).
     Triangle {
         point: Vec3,
         normal: Vec3,
-        area: f32,
         two_sided: bool,
-        emissive: Vec3,
-        select: f32,
+        emission: Vec3,
     },
 }
 
@@ -538,9 +536,9 @@ impl Lights {
     }
 
     /// What seed 004's lanes need to evaluate `point` as
-    /// [`evaluate_geometry`](Self::evaluate_geometry) does, for point lights and untextured
-    /// emissive triangles whose selection probability is positive and finite; `None` for
-    /// every other light (the lanes leave those to `evaluate_geometry`).
+    /// [`evaluate_geometry`](Self::evaluate_geometry) does, for point lights and emissive
+    /// triangles whose selection probability is positive and finite; `None` for every other
+    /// light (the lanes leave those to `evaluate_geometry`).
     #[inline]
     pub fn lane_light(&self, point: &LightPoint) -> Option<LaneLight> {
         let index = point.light as usize;
@@ -552,17 +550,11 @@ impl Lights {
             return None;
         }
         if let Some(t) = self.triangles.get(index) {
-            let e = &self.emitters[t.emitter as usize];
-            if e.texture.is_some() && t.uvs != NONE {
-                return None;
-            }
             return Some(LaneLight::Triangle {
                 point: point.point,
                 normal: t.normal,
-                area: t.area,
                 two_sided: t.two_sided,
-                emissive: e.emissive,
-                select,
+                emission: self.triangle_radiance(t, point.bary),
             });
         }
         match self.punctual.get(index - self.triangles.len()) {

@@ -47,6 +47,9 @@
 //!   `normal_threshold` and the albedos differ by at most [`ALBEDO_TOLERANCE`] in every
 //!   channel; its `M` is capped at `m_cap` times the current `M` (0: no cap).
 //! - **Spatial reuse**: neighbours uniform in a disk of `radius` pixels (the paper's pattern),
+//!   taken as consecutive entries, from a random start, of a table of 1,024 offsets that
+//!   follow the R2 sequence over the disk (RTXDI's neighbour table: a pixel's neighbours are
+//!   spread over the disk instead of independent), the origin left out; a neighbour is
 //!   rejected when off screen, on the sky, when their depth differs by more than
 //!   `depth_threshold` relative to this pixel's, or their normals' cosine is below
 //!   `normal_threshold`. Each iteration reads the previous iteration's reservoirs.
@@ -55,17 +58,23 @@
 //!   bounces always use next event estimation. Emission that BSDF sampling reaches from the
 //!   first hit through a non-delta lobe is left out (the reservoir has it), except from
 //!   emitters the light list does not hold.
+//! - **Candidates**: drawn from the frame's pool ([`pool`]): 16,384 light points drawn once
+//!   per frame from the source density, in blocks of 16 that a pixel picks at random (the
+//!   "light tiles" of Wyman and Panteleev 2021). Each candidate is still distributed as the
+//!   source density; pixels that pick the same block share its candidates.
 //! - **Randomness**: each pixel's candidates and neighbours come from streams hashed from the
-//!   seed, the pixel and its sample index, so frames do not depend on the thread count.
+//!   seed, the pixel and its sample index, and the pool from the seed and the sample index, so
+//!   frames do not depend on the thread count.
 //! - **History**: the reservoirs survive camera moves (temporal reuse follows the motion
 //!   vectors) and frames that do not accumulate; any other change of the settings, a reset or
 //!   a new resolution forgets them.
-//! - **Speed**: a pixel's candidates are drawn eight at a time and their targets on point
-//!   lights and untextured emissive triangles computed in one branch-free loop over a
-//!   structure of arrays, which the compiler turns into SIMD lanes (AVX2 chosen at run time);
-//!   the random numbers and the arithmetic are the one-at-a-time path's, so the reservoirs are
-//!   the same bit for bit ([`Receiver::candidates_in_lanes`]). The spatial pass tests its
-//!   neighbours on a 16-byte key per pixel (depth and normal) instead of the G-buffer pixel.
+//! - **Speed**: a block's targets on point lights and emissive triangles are computed in one
+//!   branch-free loop over its structure of arrays, which the compiler turns into SIMD lanes
+//!   (AVX-512 or AVX2 chosen at run time; other lights are evaluated one by one); a block is
+//!   resampled on its own (one lane chosen by the prefix sums of its weights) and merged into
+//!   the reservoir with its weight sum, three random numbers per block. The spatial pass
+//!   evaluates a pixel's neighbours' samples together the same way, and tests its neighbours on a 16-byte key per pixel (depth and normal) instead of
+//!   the G-buffer pixel.
 //! - **Not yet**: together with seed 000's adaptive sampling or reprojection (the
 //!   configuration is refused), and the pass costs far more than the GPU implementations'
 //!   (BENCHMARKS.md, "Seed 004").
@@ -78,7 +87,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bsdf::{Bsdf, BsdfAt};
 use crate::config::ConfigError;
-use crate::light::{LaneLight, LightPoint, LightSample, Lights};
+use crate::light::{LightPoint, LightSample, Lights};
 use crate::path::{PathTracer, Vertex};
 
 use super::gbuffer::{GBuffer, PrimaryHit};
@@ -270,65 +279,6 @@ impl Reservoir {
     }
 }
 
-/// Candidates evaluated together ([`Receiver::candidates_in_lanes`]).
-const LANES: usize = 8;
-
-/// [`LANES`] lights ([`LaneLight`]), structure of arrays (unused lanes hold zeros). Point
-/// lights: position `q`, intensity `e`, `inv_range`; triangles: the chosen point `q`, the
-/// emission `e`, the triangle's normal, area, sidedness and selection probability.
-#[derive(Default)]
-struct LightLanes {
-    q: [[f32; LANES]; 3],
-    e: [[f32; LANES]; 3],
-    inv_range: [f32; LANES],
-    normal: [[f32; LANES]; 3],
-    area: [f32; LANES],
-    select: [f32; LANES],
-    triangle: [bool; LANES],
-    two_sided: [bool; LANES],
-}
-
-impl LightLanes {
-    #[inline(always)]
-    fn set_vec(lanes: &mut [[f32; LANES]; 3], k: usize, v: Vec3) {
-        (lanes[0][k], lanes[1][k], lanes[2][k]) = (v.x, v.y, v.z);
-    }
-
-    #[inline(always)]
-    fn get_vec(lanes: &[[f32; LANES]; 3], k: usize) -> Vec3 {
-        Vec3::new(lanes[0][k], lanes[1][k], lanes[2][k])
-    }
-
-    #[inline(always)]
-    fn set(&mut self, k: usize, light: LaneLight) {
-        match light {
-            LaneLight::Point {
-                position,
-                intensity,
-                inv_range,
-            } => {
-                Self::set_vec(&mut self.q, k, position);
-                Self::set_vec(&mut self.e, k, intensity);
-                self.inv_range[k] = inv_range;
-            }
-            LaneLight::Triangle {
-                point,
-                normal,
-                area,
-                two_sided,
-                emissive,
-                select,
-            } => {
-                Self::set_vec(&mut self.q, k, point);
-                Self::set_vec(&mut self.e, k, emissive);
-                Self::set_vec(&mut self.normal, k, normal);
-                (self.area[k], self.select[k]) = (area, select);
-                (self.triangle[k], self.two_sided[k]) = (true, two_sided);
-            }
-        }
-    }
-}
-
 /// A first-hit surface as the reservoirs see it: where light is received and how it is
 /// reflected toward the camera.
 #[derive(Debug, Clone, Copy)]
@@ -400,163 +350,244 @@ impl Receiver {
         })
     }
 
-    /// Resampled importance sampling of `count` light samples (chosen by the lights'
-    /// selection, then uniformly on the light) by their target here.
-    pub fn candidates(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
-        if self.bsdf.has_lanes() {
-            #[cfg(target_arch = "x86_64")]
+    /// Resampled importance sampling of `count` candidates from the frame's `pool` (whole
+    /// blocks of it, see [`pool`](self::pool)) by their target here, in SIMD lanes compiled
+    /// for AVX-512 or AVX2 where the processor has them.
+    pub fn candidates(
+        &self,
+        pool: &LightPool,
+        lights: &Lights,
+        count: u32,
+        rng: &mut Rng,
+    ) -> Reservoir {
+        if !self.bsdf.has_lanes() {
+            return self.candidates_one_by_one(pool, lights, count, rng);
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512, checked just above.
+                return unsafe { self.candidates_avx512(pool, lights, count, rng) };
+            }
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the processor has AVX2, checked just above.
-                return unsafe { self.candidates_avx2(lights, count, rng) };
+                return unsafe { self.candidates_avx2(pool, lights, count, rng) };
             }
-            return self.candidates_in_lanes(lights, count, rng);
         }
-        self.candidates_one_by_one(lights, count, rng)
+        self.candidates_in_lanes(pool, lights, count, rng)
     }
 
-    /// [`candidates`](Self::candidates) one at a time: the reference, and the path for BSDFs
-    /// without lanes.
-    pub fn candidates_one_by_one(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
-        Reservoir::resample(
-            count,
-            rng,
-            |rng| {
-                let u_select = rng.next_f32();
-                lights.draw(u_select, Vec2::new(rng.next_f32(), rng.next_f32()))
-            },
-            |point| self.target(lights, point),
-        )
+    /// [`candidates`](Self::candidates) with each target computed by [`target`](Self::target):
+    /// the reference, and the path for BSDFs without lanes.
+    pub fn candidates_one_by_one(
+        &self,
+        pool: &LightPool,
+        lights: &Lights,
+        count: u32,
+        rng: &mut Rng,
+    ) -> Reservoir {
+        self.resample_blocks::<false>(pool, lights, count, rng)
+    }
+
+    /// [`candidates`](Self::candidates) with the targets of a block's point lights and
+    /// triangles computed together in a loop without branches, which the compiler turns into
+    /// SIMD lanes ([`block_targets`](Self::block_targets)), the other lights one by one; for
+    /// the build's baseline instructions.
+    pub fn candidates_in_lanes(
+        &self,
+        pool: &LightPool,
+        lights: &Lights,
+        count: u32,
+        rng: &mut Rng,
+    ) -> Reservoir {
+        self.resample_blocks::<true>(pool, lights, count, rng)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn candidates_avx512(
+        &self,
+        pool: &LightPool,
+        lights: &Lights,
+        count: u32,
+        rng: &mut Rng,
+    ) -> Reservoir {
+        self.resample_blocks::<true>(pool, lights, count, rng)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn candidates_avx2(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
-        self.candidates_in_lanes(lights, count, rng)
+    fn candidates_avx2(
+        &self,
+        pool: &LightPool,
+        lights: &Lights,
+        count: u32,
+        rng: &mut Rng,
+    ) -> Reservoir {
+        self.resample_blocks::<true>(pool, lights, count, rng)
     }
 
-    /// [`candidates`](Self::candidates) eight at a time, the same reservoir bit for bit as
-    /// [`candidates_one_by_one`](Self::candidates_one_by_one) (the same random numbers in the
-    /// same order, the same arithmetic): each block of eight candidates is drawn first (the
-    /// light, its point, and the resampling number of each valid one), then the targets of
-    /// those on point lights and untextured triangles are computed together in a loop without
-    /// branches, which the compiler turns into SIMD lanes (`lane_targets`), the others one by
-    /// one, then the block streams through the reservoir in order.
-    #[inline(always)]
-    pub fn candidates_in_lanes(&self, lights: &Lights, count: u32, rng: &mut Rng) -> Reservoir {
-        let mut r = Reservoir::default();
-        let mut left = count;
-        while left > 0 {
-            let n = left.min(LANES as u32) as usize;
-            left -= n as u32;
-            let mut points = [LightPoint::default(); LANES];
-            let mut block = [(0.0f32, 0.0f32); LANES];
-            let mut drawn = [false; LANES];
-            for k in 0..n {
-                let u_select = rng.next_f32();
-                if let Some((p, density)) =
-                    lights.draw(u_select, Vec2::new(rng.next_f32(), rng.next_f32()))
-                {
-                    if density > 0.0 {
-                        points[k] = p;
-                        block[k] = (density, rng.next_f32());
-                        drawn[k] = true;
-                    }
-                }
-            }
-            let targets = self.targets(lights, &points[..n], &drawn);
-            // Reservoir::update of each candidate in order, the survivor's point copied once
-            // after the block (a candidate not drawn counts with weight 0).
-            let w: [f32; LANES] = std::array::from_fn(|k| {
-                if drawn[k] {
-                    targets[k] / block[k].0
+    /// The target function here of the first `n` of `points` (0 for the others), in lanes as
+    /// [`candidates`](Self::candidates) computes them.
+    #[inline]
+    pub fn point_targets<const N: usize>(
+        &self,
+        lights: &Lights,
+        points: &[LightPoint; N],
+        n: usize,
+    ) -> [f32; N] {
+        if !self.bsdf.has_lanes() {
+            return std::array::from_fn(|k| {
+                if k < n {
+                    self.target(lights, &points[k])
                 } else {
                     0.0
                 }
             });
-            let mut survivor = LANES;
-            for k in 0..n {
-                if r.admit(w[k], targets[k], 1.0, block[k].1) {
-                    survivor = k;
-                }
+        }
+        let block = Block::of(lights, points, n);
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512, checked just above.
+                return unsafe { self.point_targets_avx512(lights, &block, points) };
             }
-            if survivor < LANES {
-                r.sample = points[survivor];
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2, checked just above.
+                return unsafe { self.point_targets_avx2(lights, &block, points) };
+            }
+        }
+        self.targets::<true, N>(lights, &block, points)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn point_targets_avx512<const N: usize>(
+        &self,
+        lights: &Lights,
+        block: &Block<N>,
+        points: &[LightPoint; N],
+    ) -> [f32; N] {
+        self.targets::<true, N>(lights, block, points)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn point_targets_avx2<const N: usize>(
+        &self,
+        lights: &Lights,
+        block: &Block<N>,
+        points: &[LightPoint; N],
+    ) -> [f32; N] {
+        self.targets::<true, N>(lights, block, points)
+    }
+
+    /// The targets of a block's lanes here: in SIMD lanes (`LANES_ON`) with the lights the
+    /// lanes do not compute one by one, or all one by one.
+    #[inline(always)]
+    fn targets<const LANES_ON: bool, const N: usize>(
+        &self,
+        lights: &Lights,
+        block: &Block<N>,
+        points: &[LightPoint; N],
+    ) -> [f32; N] {
+        let one = |k: usize| {
+            if block.inv_density[k] > 0.0 {
+                self.target(lights, &points[k])
+            } else {
+                0.0
+            }
+        };
+        if !LANES_ON {
+            return std::array::from_fn(one);
+        }
+        let mut targets = self.block_targets(block);
+        let mut scalar = block.scalar;
+        while scalar != 0 {
+            let k = scalar.trailing_zeros() as usize;
+            scalar &= scalar - 1;
+            targets[k] = one(k);
+        }
+        targets
+    }
+
+    /// Streams `count` candidates, whole blocks of [`LANES`] picked at random from `pool`
+    /// (the last block's first lanes only), through a reservoir ([`targets`](Self::targets)
+    /// computing their target functions): each block is resampled on its own (one lane chosen in
+    /// proportion to its weight), then merged into the reservoir with the block's weight sum,
+    /// which picks every candidate with probability `w / w_sum` as streaming them one by
+    /// one would, with three random numbers per block instead of one per candidate.
+    #[inline(always)]
+    fn resample_blocks<const LANES_ON: bool>(
+        &self,
+        pool: &LightPool,
+        lights: &Lights,
+        count: u32,
+        rng: &mut Rng,
+    ) -> Reservoir {
+        let mut r = Reservoir::default();
+        if pool.is_empty() {
+            r.m = count as f32;
+            return r;
+        }
+        let mut left = count;
+        while left > 0 {
+            let n = left.min(LANES as u32) as usize;
+            left -= n as u32;
+            let (block, points) = pool.pick(rng.next_u32());
+            let t = self.targets::<LANES_ON, LANES>(lights, block, points);
+            // The weights' running sums (a weight that is not positive and finite counts 0).
+            let mut prefix = [0.0f32; LANES];
+            let mut sum = 0.0f32;
+            let mut last = 0;
+            for k in 0..LANES {
+                let w = t[k] * block.inv_density[k];
+                let valid = k < n && w > 0.0 && w.is_finite();
+                sum += if valid { w } else { 0.0 };
+                last = if valid { k } else { last };
+                prefix[k] = sum;
+            }
+            // The first lane whose running sum exceeds u * sum (the last valid one if
+            // rounding leaves none).
+            let x = rng.next_f32() * sum;
+            let below = prefix.iter().filter(|&&p| p <= x).count();
+            let pick = below.min(last);
+            if r.admit(sum, t[pick], n as f32, rng.next_f32()) {
+                r.sample = points[pick];
             }
         }
         r.finish(r.m);
         r
     }
 
-    /// The targets of `points` (at most [`LANES`]) whose `wanted` is set, [`target`](Self::target)
-    /// of each bit for bit (0 for the others): those on point lights and untextured triangles
-    /// together in lanes ([`lane_targets`](Self::lane_targets)), the others one by one.
+    /// The target function of a block's point lights and triangles here, as
+    /// [`target`](Self::target) computes it for each (to rounding), in one loop without
+    /// branches on the lanes: `lum(f e) |cos| a / d^2`, with `a` the range window of a point
+    /// light or the cosine at a triangle. Lanes of other lights get garbage (the caller
+    /// replaces them).
     #[inline(always)]
-    fn targets(&self, lights: &Lights, points: &[LightPoint], wanted: &[bool]) -> [f32; LANES] {
-        let mut lanes = LightLanes::default();
-        let mut point = [false; LANES];
-        for (k, p) in points.iter().enumerate() {
-            if wanted[k] {
-                if let Some(light) = lights.lane_light(p) {
-                    lanes.set(k, light);
-                    point[k] = true;
-                }
-            }
-        }
-        let mut targets = self.lane_targets(&lanes);
-        for (k, p) in points.iter().enumerate() {
-            if !point[k] {
-                targets[k] = if wanted[k] {
-                    self.target(lights, p)
-                } else {
-                    0.0
-                };
-            }
-        }
-        targets
-    }
-
-    /// The target function of [`LANES`] lights here, as [`target`](Self::target) computes it for
-    /// each (bit for bit), in one loop without branches on the lanes: each lane computes what
-    /// `Lights::evaluate_geometry` gives for a point light and for a triangle, and keeps its
-    /// own.
-    #[inline(always)]
-    fn lane_targets(&self, lanes: &LightLanes) -> [f32; LANES] {
+    fn block_targets<const N: usize>(&self, b: &Block<N>) -> [f32; N] {
         let s = &self.surface;
         let wo_ng = self.wo.dot(s.ng);
-        let mut out = [0.0; LANES];
+        let mut out = [0.0; N];
         for (k, out) in out.iter_mut().enumerate() {
-            let q = LightLanes::get_vec(&lanes.q, k);
-            let e = LightLanes::get_vec(&lanes.e, k);
+            let q = Vec3::new(b.q[0][k], b.q[1][k], b.q[2][k]);
+            let e = Vec3::new(b.e[0][k], b.e[1][k], b.e[2][k]);
+            let n = Vec3::new(b.n[0][k], b.n[1][k], b.n[2][k]);
             let to = q - s.p;
             let d2 = to.length_squared();
             let d = d2.sqrt();
             let wi = to / d;
-            // A point light: its radiance, valid at a positive, finite distance.
-            let point_radiance = e * (crate::light::range_window(d, lanes.inv_range[k]) / d2);
-            let point_ok = d2 > 0.0 && d2.is_finite() && point_radiance.max_element() > 0.0;
-            // A triangle: the solid-angle density of its point and the geometry term.
-            let cos = -LightLanes::get_vec(&lanes.normal, k).dot(wi);
-            let cos = if lanes.two_sided[k] { cos.abs() } else { cos };
-            let pdf = d2 / (lanes.area[k] * cos);
-            let density = lanes.select[k] * pdf;
-            let triangle_ok = !(cos.is_nan() || cos <= 0.0)
-                && pdf > 0.0
-                && pdf.is_finite()
-                && e.max_element() > 0.0
-                && density > 0.0
-                && density.is_finite();
-            let g_triangle = 1.0 / (lanes.area[k] * pdf);
-            let (radiance, g, lit) = if lanes.triangle[k] {
-                (e, g_triangle, triangle_ok)
-            } else {
-                (point_radiance, 1.0, point_ok)
-            };
-            // Receiver::receive.
+            let cos = -n.dot(wi);
+            let cos = if b.two_sided[k] { cos.abs() } else { cos };
+            let window = crate::light::range_window(d, b.inv_range[k]);
+            let a = if b.triangle[k] { cos } else { window };
             let facing = wi.dot(s.ng) * wo_ng > 0.0 || self.transmits;
             let wi_local = s.to_local(wi);
             let f = self.bsdf.eval_lane(&self.at, wi_local);
-            let target = luminance(f * wi_local.z.abs() * radiance) * g;
-            *out = if lit && facing && target > 0.0 && target.is_finite() {
+            let target = luminance(f * e) * (wi_local.z.abs() * a / d2);
+            let valid = d2 > 0.0 && d2.is_finite() && a > 0.0 && facing;
+            *out = if valid && target > 0.0 && target.is_finite() {
                 target
             } else {
                 0.0
@@ -613,6 +644,11 @@ pub struct Restir {
     keys: Vec<Key>,
     /// This frame's receivers (`None`: sky or delta surface).
     pub receivers: Vec<Option<Receiver>>,
+    /// This frame's light candidates.
+    pool: LightPool,
+    /// The spatial pass's neighbour offsets ([`disk_offsets`]) and their radius.
+    offsets: Vec<(i32, i32)>,
+    offsets_radius: f32,
     /// The previous frame's final reservoirs, receivers and G-buffer, for temporal reuse.
     previous: Vec<Reservoir>,
     previous_receivers: Vec<Option<Receiver>>,
@@ -638,6 +674,37 @@ fn pixel_rng(seed: u64, pixel: usize, pass: u64, index: u32) -> Rng {
         hash(&[seed, pixel as u64, CANDIDATES_STREAM + pass]),
         index as u64,
     )
+}
+
+/// Reused reservoirs whose targets are computed together (in SIMD lanes).
+const NEIGHBOUR_LANES: usize = 8;
+
+/// Neighbour offsets in the spatial pass's table ([`disk_offsets`]).
+const OFFSETS: usize = 1024;
+
+/// [`OFFSETS`] pixel offsets uniform in the disk of `radius` pixels, the origin left out: the
+/// R2 sequence (Roberts 2018) mapped to the disk, so that consecutive entries, which a pixel
+/// takes from a random start, are spread over it (as RTXDI's neighbour table does).
+fn disk_offsets(radius: f32) -> Vec<(i32, i32)> {
+    // 1 / g and 1 / g^2 for g the plastic number, the root of x^3 = x + 1.
+    const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_3);
+    let mut offsets = Vec::with_capacity(OFFSETS);
+    let mut i = 0u64;
+    while offsets.len() < OFFSETS {
+        i += 1;
+        let u = (0.5 + A.0 * i as f64).fract();
+        let v = (0.5 + A.1 * i as f64).fract();
+        let r = radius as f64 * u.sqrt();
+        let phi = std::f64::consts::TAU * v;
+        let (dx, dy) = (
+            (r * phi.cos()).round() as i32,
+            (r * phi.sin()).round() as i32,
+        );
+        if (dx, dy) != (0, 0) {
+            offsets.push((dx, dy));
+        }
+    }
+    offsets
 }
 
 /// What the spatial pass compares of a pixel's surface ([`similar`]): its depth (NaN for
@@ -682,6 +749,7 @@ impl Restir {
                 * size_of::<Option<Receiver>>()
             + self.previous_gbuffer.capacity() * size_of::<GPixel>()
             + self.keys.capacity() * size_of::<Key>()
+            + self.pool.bytes()
     }
 
     /// The candidates, temporal and spatial passes for a frame whose first hits (sample
@@ -718,6 +786,8 @@ impl Restir {
                 }
             });
         self.reservoirs.resize(n, Reservoir::default());
+        self.pool.build(lights, POOL_BLOCKS, seed, index);
+        let pool = &self.pool;
         let candidates = config.candidates;
         let visibility = config.visibility_reuse;
         let unbiased = config.unbiased;
@@ -732,7 +802,7 @@ impl Restir {
                     return 0u64;
                 };
                 let mut rng = pixel_rng(seed, pixel, 0, index);
-                *r = receiver.candidates(lights, candidates, &mut rng);
+                *r = receiver.candidates(pool, lights, candidates, &mut rng);
                 let mut rays = 0;
                 if (visibility || unbiased)
                     && r.weight > 0.0
@@ -805,13 +875,24 @@ impl Restir {
             own.m,
             rng.next_f32(),
         );
-        for (q, _) in others {
-            let t = if q.weight > 0.0 {
-                receiver.target(lights, &q.sample)
+        // The others' samples' targets here, in lanes when there are several.
+        for chunk in others.chunks(NEIGHBOUR_LANES) {
+            let targets = if let [(q, _)] = chunk {
+                let mut one = [0.0; NEIGHBOUR_LANES];
+                one[0] = receiver.target(lights, &q.sample);
+                one
             } else {
-                0.0
+                let points = std::array::from_fn(|k| {
+                    chunk
+                        .get(k)
+                        .map_or_else(LightPoint::default, |(q, _)| q.sample)
+                });
+                receiver.point_targets(lights, &points, chunk.len())
             };
-            s.update(q.sample, t * q.weight * q.m, t, q.m, rng.next_f32());
+            for ((q, _), t) in chunk.iter().zip(targets) {
+                let t = if q.weight > 0.0 { t } else { 0.0 };
+                s.update(q.sample, t * q.weight * q.m, t, q.m, rng.next_f32());
+            }
         }
         let z = if config.unbiased && s.target > 0.0 {
             // A reservoir holds only samples its own pixel sees (or none): a survivor hidden
@@ -979,6 +1060,11 @@ impl Restir {
                 .zip(gbuffer.par_iter())
                 .for_each(|(k, g)| *k = Key::of(g));
         }
+        if self.offsets.len() != OFFSETS || self.offsets_radius != config.radius {
+            self.offsets = disk_offsets(config.radius);
+            self.offsets_radius = config.radius;
+        }
+        let offsets = &self.offsets;
         let keys = &self.keys;
         let input = &self.reservoirs;
         let receivers = &self.receivers;
@@ -996,15 +1082,11 @@ impl Restir {
                 let mut rng = pixel_rng(seed, pixel, 2 + iteration as u64, index);
                 // The neighbours taken (a vector per thread, kept across pixels).
                 others.clear();
-                for _ in 0..config.neighbours {
-                    // Uniform in the disk of the radius.
-                    let r = config.radius * rng.next_f32().sqrt();
-                    let phi = std::f32::consts::TAU * rng.next_f32();
-                    let (nx, ny) = (
-                        x + (r * phi.cos()).round() as i64,
-                        y + (r * phi.sin()).round() as i64,
-                    );
-                    if nx < 0 || ny < 0 || nx >= w || ny >= h || (nx, ny) == (x, y) {
+                let start = rng.next_u32() as usize;
+                for k in 0..config.neighbours as usize {
+                    let (dx, dy) = offsets[(start + k) % OFFSETS];
+                    let (nx, ny) = (x + dx as i64, y + dy as i64);
+                    if nx < 0 || ny < 0 || nx >= w || ny >= h {
                         continue;
                     }
                     let q = (ny * w + nx) as usize;
@@ -1042,5 +1124,8 @@ impl Restir {
     }
 }
 
+pub mod pool;
 #[cfg(test)]
 mod tests;
+
+use pool::{Block, LightPool, LANES, POOL_BLOCKS};

@@ -189,10 +189,16 @@ fn ris_shading_matches_lambert_irradiance_for_any_candidate_count() {
         })
         .sum::<Vec3>()
         * (albedo / std::f32::consts::PI);
+    // Each trial draws its own small pool (two blocks: a pixel's blocks often coincide), so
+    // that the pool's randomness is part of the estimate.
+    let mut pool = LightPool::default();
     for candidates in [1, 4, 32] {
         let mut rng = Rng::new(candidates as u64, 3);
+        let mut trial = 0;
         let (mean, err) = mean_and_error(30_000, || {
-            let r = rec.candidates(&world.lights, candidates, &mut rng);
+            trial += 1;
+            pool.build(&world.lights, 2, candidates as u64, trial);
+            let r = rec.candidates(&pool, &world.lights, candidates, &mut rng);
             let mut rays = 0;
             rec.shade(&tracer, &r, &mut rays)
         });
@@ -343,11 +349,13 @@ fn mixed_world(n: usize) -> World {
 }
 
 #[test]
-fn candidates_in_lanes_are_the_reference_bit_for_bit() {
-    // Eight at a time (point lights and the quads' untextured triangles in SIMD lanes) against
-    // one at a time: the same reservoir, the same random numbers consumed, for BSDFs with
-    // lanes (Lambertian, dielectric and metallic GGX) seen from above and at grazing angles.
+fn candidates_in_lanes_are_the_reference() {
+    // In lanes (point lights and the quads' triangles in SIMD lanes, the spot and the
+    // directional light one by one) against one at a time: the same survivors, the same random
+    // numbers consumed, weights equal to rounding, for BSDFs with lanes (Lambertian,
+    // dielectric and metallic GGX) seen from above and at grazing angles.
     let world = mixed_world(40);
+    let lights = &world.lights;
     let base = receiver(0.5);
     let mut glossy = BsdfParams::lambertian(Vec3::new(0.7, 0.4, 0.2));
     glossy.roughness = 0.3;
@@ -364,7 +372,10 @@ fn candidates_in_lanes_are_the_reference_bit_for_bit() {
         metal,
         half,
     ];
-    let mut checked = 0;
+    let mut pool = LightPool::default();
+    pool.build(lights, 64, 5, 0);
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * a.abs().max(b.abs());
+    let (mut checked, mut scalar) = (0, 0);
     for params in &bsdfs {
         let bsdf = Bsdf::new(params);
         assert!(bsdf.has_lanes());
@@ -375,22 +386,64 @@ fn candidates_in_lanes_are_the_reference_bit_for_bit() {
         ] {
             for transmits in [false, true] {
                 let rec = Receiver::with(base.surface, bsdf, wo.normalize(), transmits);
-                for count in [1, 7, 8, 9, 32, 33] {
+                for count in [1, 7, 16, 17, 32, 33] {
                     for seed in 0..20u64 {
                         let mut a = Rng::new(seed, count as u64);
                         let mut b = a.clone();
-                        let lanes = rec.candidates_in_lanes(&world.lights, count, &mut a);
-                        let reference = rec.candidates_one_by_one(&world.lights, count, &mut b);
-                        assert_eq!(lanes, reference, "{params:?} {wo} M = {count}");
-                        assert_eq!(a.next_f32(), b.next_f32());
-                        // The dispatch (AVX2 where the processor has it) too.
-                        let mut c = Rng::new(seed, count as u64);
-                        assert_eq!(rec.candidates(&world.lights, count, &mut c), reference);
+                        let mut c = a.clone();
+                        let reference = rec.candidates_one_by_one(&pool, lights, count, &mut a);
+                        // The baseline lanes and the dispatch (AVX-512 or AVX2 where the
+                        // processor has them).
+                        for r in [
+                            rec.candidates_in_lanes(&pool, lights, count, &mut b),
+                            rec.candidates(&pool, lights, count, &mut c),
+                        ] {
+                            assert_eq!(r.sample, reference.sample, "{params:?} {wo} M = {count}");
+                            assert_eq!(r.m, reference.m);
+                            assert!(close(r.w_sum, reference.w_sum), "{r:?} {reference:?}");
+                            assert!(close(r.target, reference.target), "{r:?} {reference:?}");
+                            assert!(close(r.weight, reference.weight), "{r:?} {reference:?}");
+                        }
+                        let next = a.next_f32();
+                        assert_eq!((b.next_f32(), c.next_f32()), (next, next));
                         checked += usize::from(reference.weight > 0.0);
+                        scalar += usize::from(
+                            reference.weight > 0.0
+                                && lights.lane_light(&reference.sample).is_none(),
+                        );
                     }
                 }
             }
         }
     }
     assert!(checked > 1000, "{checked} reservoirs with a sample");
+    assert!(
+        scalar > 10,
+        "{scalar} survivors on lights evaluated one by one"
+    );
+    // The neighbours' targets in lanes are `target` to rounding.
+    let rec = Receiver::with(
+        base.surface,
+        Bsdf::new(&glossy),
+        Vec3::new(0.3, 1.0, 0.2).normalize(),
+        false,
+    );
+    let mut rng = Rng::new(9, 9);
+    for n in 1..=LANES {
+        let points: [LightPoint; LANES] = std::array::from_fn(|_| {
+            let (p, _) = lights
+                .draw(rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                .unwrap();
+            p
+        });
+        let t = rec.point_targets(lights, &points, n);
+        for k in 0..LANES {
+            let expected = if k < n {
+                rec.target(lights, &points[k])
+            } else {
+                0.0
+            };
+            assert!(close(t[k], expected), "{k} of {n}: {} vs {expected}", t[k]);
+        }
+    }
 }
