@@ -81,7 +81,7 @@
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
-use pathlight_core::rng::{hash, Rng};
+use pathlight_core::rng::{hash, mix64, Rng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -577,7 +577,8 @@ impl Receiver {
             let to = q - s.p;
             let d2 = to.length_squared();
             let d = d2.sqrt();
-            let wi = to / d;
+            let inv_d = 1.0 / d;
+            let wi = to * inv_d;
             let cos = -n.dot(wi);
             let cos = if b.two_sided[k] { cos.abs() } else { cos };
             let window = crate::light::range_window(d, b.inv_range[k]);
@@ -585,7 +586,7 @@ impl Receiver {
             let facing = wi.dot(s.ng) * wo_ng > 0.0 || self.transmits;
             let wi_local = s.to_local(wi);
             let f = self.bsdf.eval_lane(&self.at, wi_local);
-            let target = luminance(f * e) * (wi_local.z.abs() * a / d2);
+            let target = luminance(f * e) * (wi_local.z.abs() * a * (inv_d * inv_d));
             let valid = d2 > 0.0 && d2.is_finite() && a > 0.0 && facing;
             *out = if valid && target > 0.0 && target.is_finite() {
                 target
@@ -678,6 +679,22 @@ fn pixel_rng(seed: u64, pixel: usize, pass: u64, index: u32) -> Rng {
 
 /// Reused reservoirs whose targets are computed together (in SIMD lanes).
 const NEIGHBOUR_LANES: usize = 8;
+
+/// Stream tag of the spatial pass's neighbour choices.
+const NEIGHBOURS_STREAM: u64 = 0x0ff5_e700;
+/// The spatial pass prefetches the neighbours of the pixel this many ahead.
+const AHEAD: usize = 4;
+
+/// Asks the processor to bring `x` into the cache (a hint, without effect on the results).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing the program sees, and `x` is a valid reference.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>((x as *const T).cast());
+    }
+}
 
 /// Neighbour offsets in the spatial pass's table ([`disk_offsets`]).
 const OFFSETS: usize = 1024;
@@ -1065,6 +1082,16 @@ impl Restir {
             self.offsets_radius = config.radius;
         }
         let offsets = &self.offsets;
+        // Pixel `p`'s `k`-th neighbour (`None` off screen): the `k`-th offset after one that a
+        // hash of the pixel picks.
+        let salt = hash(&[seed, index as u64, NEIGHBOURS_STREAM + iteration as u64]);
+        let neighbour = |p: usize, k: usize| {
+            let start = (mix64(salt ^ p as u64) >> 32) as usize;
+            let (dx, dy) = offsets[(start + k) % OFFSETS];
+            let (x, y) = (p as i64 % w + dx as i64, p as i64 / w + dy as i64);
+            (x >= 0 && y >= 0 && x < w && y < h).then_some((y * w + x) as usize)
+        };
+        let neighbours = config.neighbours as usize;
         let keys = &self.keys;
         let input = &self.reservoirs;
         let receivers = &self.receivers;
@@ -1078,18 +1105,15 @@ impl Restir {
                     return 0;
                 };
                 let key = &keys[pixel];
-                let (x, y) = (pixel as i64 % w, pixel as i64 / w);
                 let mut rng = pixel_rng(seed, pixel, 2 + iteration as u64, index);
+                // The neighbours of a pixel a few ahead on their way to the cache.
+                for q in (0..neighbours).filter_map(|k| neighbour(pixel + AHEAD, k)) {
+                    prefetch(&input[q]);
+                    prefetch(&keys[q]);
+                }
                 // The neighbours taken (a vector per thread, kept across pixels).
                 others.clear();
-                let start = rng.next_u32() as usize;
-                for k in 0..config.neighbours as usize {
-                    let (dx, dy) = offsets[(start + k) % OFFSETS];
-                    let (nx, ny) = (x + dx as i64, y + dy as i64);
-                    if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                        continue;
-                    }
-                    let q = (ny * w + nx) as usize;
+                for q in (0..neighbours).filter_map(|k| neighbour(pixel, k)) {
                     // A pixel without a receiver has an empty reservoir (M = 0). The plain
                     // combination never reads the neighbour's receiver (a cache miss each):
                     // only the unbiased count and the MIS weights do.
