@@ -1,5 +1,6 @@
-//! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 8 centre pixels per
-//! SIMD register (AVX2 with FMA where the processor has them): the same weights, taps and
+//! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 16 centre pixels at a
+//! time (one AVX-512 register, or two AVX2 ones, with FMA, as the processor has them): the same
+//! weights, taps and
 //! order of sums as the scalar pass in `svgf.rs`, which stays as the reference (a test holds
 //! them together) and for passes too wide for the planes' padding.
 //!
@@ -14,7 +15,7 @@ use rayon::prelude::*;
 
 use crate::exp::{exp_neg, MulAdd, Plain};
 
-const LANES: usize = 8;
+const LANES: usize = 16;
 type Lanes = [f32; LANES];
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
@@ -284,7 +285,7 @@ struct Pass<'a> {
     wide: bool,
 }
 
-/// The weighted sums of 8 centre pixels.
+/// The weighted sums of [`LANES`] centre pixels.
 #[derive(Default)]
 struct Sums {
     w: [Lanes; 2],
@@ -337,16 +338,27 @@ impl Pass<'_> {
 
     fn group(&self, x0: i64, y: i64) -> Sums {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the processor has AVX2 and FMA (checked just above).
-            return unsafe {
-                if self.wide {
-                    self.group_avx2::<2>(x0, y)
-                } else {
-                    self.group_avx2::<1>(x0, y)
-                }
-            };
+        if std::arch::is_x86_feature_detected!("fma") {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512 and FMA (checked just above).
+                return unsafe {
+                    if self.wide {
+                        self.group_avx512::<2>(x0, y)
+                    } else {
+                        self.group_avx512::<1>(x0, y)
+                    }
+                };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2 and FMA (checked just above).
+                return unsafe {
+                    if self.wide {
+                        self.group_avx2::<2>(x0, y)
+                    } else {
+                        self.group_avx2::<1>(x0, y)
+                    }
+                };
+            }
         }
         if self.wide {
             self.group_lanes::<Plain, 2>(x0, y)
@@ -361,7 +373,13 @@ impl Pass<'_> {
         self.group_lanes::<crate::exp::Fused, R>(x0, y)
     }
 
-    /// The 8 values of `buffer` from `at` on, without a bounds check: a pass reads its taps
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,fma")]
+    fn group_avx512<const R: i64>(&self, x0: i64, y: i64) -> Sums {
+        self.group_lanes::<crate::exp::Fused, R>(x0, y)
+    }
+
+    /// The [`LANES`] values of `buffer` from `at` on, without a bounds check: a pass reads its taps
     /// 14 times, and the checks (two per read) were a sixth of its instructions.
     ///
     /// # Safety
@@ -371,7 +389,7 @@ impl Pass<'_> {
     #[inline(always)]
     unsafe fn lanes(buffer: &[f32], at: usize) -> Lanes {
         debug_assert!(at + LANES <= buffer.len());
-        // SAFETY: the caller's contract; `[f32; 8]` has no alignment beyond f32's, and the
+        // SAFETY: the caller's contract; `[f32; LANES]` has no alignment beyond f32's, and the
         // read is unaligned anyway.
         unsafe { std::ptr::read_unaligned(buffer.as_ptr().add(at).cast::<Lanes>()) }
     }

@@ -47,9 +47,10 @@
 //!   is not finite (a NaN or infinite sample) is passed through unfiltered and is nobody's
 //!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not
 //!   neighbours either (the window is cut at the borders, not clamped).
-//! - Windows are laid over the padded planes 8 centre pixels at a time, one row of them: each
-//!   tap is then 8 neighbours next to each other in memory, which the compiler turns into
-//!   SIMD (AVX2 with fused multiply-adds where the processor has them, chosen at run time;
+//! - Windows are laid over the padded planes 16 centre pixels at a time, one row of them: each
+//!   tap is then 16 neighbours next to each other in memory, which the compiler turns into
+//!   SIMD (AVX-512 or AVX2 with fused multiply-adds where the processor has them, chosen at run
+//!   time;
 //!   without, the results differ by float rounding). Rows run in parallel; every pixel's
 //!   result depends on the inputs alone, not on the thread count.
 
@@ -63,8 +64,8 @@ use crate::exp::{exp_neg, Fused, MulAdd, Plain};
 use crate::features::{demodulator, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::FilterError;
 
-/// Centre pixels filtered together: one SIMD register of f32 with AVX2.
-const LANES: usize = 8;
+/// Centre pixels filtered together: one SIMD register of f32 with AVX-512, two with AVX2.
+const LANES: usize = 16;
 type Lanes = [f32; LANES];
 
 /// The padded planes, one row of each after another: `VALID` (1 or 0), depth, normal, texture,
@@ -378,11 +379,17 @@ struct Sums {
 impl Row<'_> {
     fn run(&self, out: &mut [Vec3]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the processor has AVX2 and FMA (checked just above).
-            unsafe { self.run_avx2(out) };
-            return;
+        if std::arch::is_x86_feature_detected!("fma") {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512 and FMA (checked just above).
+                unsafe { self.run_avx512(out) };
+                return;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2 and FMA (checked just above).
+                unsafe { self.run_avx2(out) };
+                return;
+            }
         }
         self.run_blocks::<Plain>(out);
     }
@@ -390,6 +397,12 @@ impl Row<'_> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn run_avx2(&self, out: &mut [Vec3]) {
+        self.run_blocks::<Fused>(out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,fma")]
+    fn run_avx512(&self, out: &mut [Vec3]) {
         self.run_blocks::<Fused>(out);
     }
 
@@ -431,7 +444,9 @@ impl Row<'_> {
         let base = l.at(x0, self.y);
         let load = |plane: usize| -> Lanes {
             let at = base + plane * l.pitch;
-            self.planes[at..at + LANES].try_into().expect("8 lanes")
+            self.planes[at..at + LANES]
+                .try_into()
+                .expect("a block of lanes")
         };
         let mut c = Centre {
             depth: load(D),

@@ -62,9 +62,10 @@
 //!   per frame from the source density, in blocks of 16 that a pixel picks at random (the
 //!   "light tiles" of Wyman and Panteleev 2021). Each candidate is still distributed as the
 //!   source density; pixels that pick the same block share its candidates.
-//! - **Randomness**: each pixel's candidates and neighbours come from streams hashed from the
-//!   seed, the pixel and its sample index, and the pool from the seed and the sample index, so
-//!   frames do not depend on the thread count.
+//! - **Randomness**: each pixel's candidates and resampling come from streams hashed from the
+//!   seed, the pixel and its sample index, its neighbours' start in the offset table from a
+//!   hash of the same, and the pool from the seed and the sample index, so frames do not
+//!   depend on the thread count.
 //! - **History**: the reservoirs survive camera moves (temporal reuse follows the motion
 //!   vectors) and frames that do not accumulate; any other change of the settings, a reset or
 //!   a new resolution forgets them.
@@ -73,8 +74,9 @@
 //!   (AVX-512 or AVX2 chosen at run time; other lights are evaluated one by one); a block is
 //!   resampled on its own (one lane chosen by the prefix sums of its weights) and merged into
 //!   the reservoir with its weight sum, three random numbers per block. The spatial pass
-//!   evaluates a pixel's neighbours' samples together the same way, and tests its neighbours on a 16-byte key per pixel (depth and normal) instead of
-//!   the G-buffer pixel.
+//!   evaluates a pixel's neighbours' samples together the same way, prefetches the neighbours
+//!   of the pixel four ahead, and tests its neighbours on a 16-byte key per pixel (depth and
+//!   normal) instead of the G-buffer pixel.
 //! - **Not yet**: together with seed 000's adaptive sampling or reprojection (the
 //!   configuration is refused), and the pass costs far more than the GPU implementations'
 //!   (BENCHMARKS.md, "Seed 004").
