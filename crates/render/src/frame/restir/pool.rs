@@ -7,7 +7,13 @@
 //! scattered reads (the "light tiles" of Wyman and Panteleev, "Rearchitecting spatiotemporal
 //! resampling for production", HPG 2021).
 //!
-//! Every pool entry is an independent draw from the source density `p`, and the block a
+//! The light choices are stratified: entry `i` of the `n` chooses its light with
+//! `(s_i + u) / n`, `s` a random permutation of `0..n` and `u` uniform, so each light holds
+//! its expected share of the pool to within one entry (independent draws would let a light's
+//! share vary by `1 / sqrt(n p)` from frame to frame: 17% with 500 equal lights, a flicker of
+//! the regions it lights). The point on the light is drawn independently.
+//!
+//! A uniformly chosen pool entry is distributed as the source density `p`, and the block a
 //! pixel takes is independent of the entries, so each candidate is still distributed as `p`:
 //! resampled importance sampling stays unbiased (its expectation is a sum over candidates of
 //! `E[f(x_i) / p(x_i)]`, whatever their dependence). What the pool adds is correlation:
@@ -117,6 +123,8 @@ impl<const N: usize> Block<N> {
 pub struct LightPool {
     blocks: Vec<Block>,
     points: Vec<[LightPoint; LANES]>,
+    /// Scratch: the entries' strata.
+    strata: Vec<u32>,
 }
 
 impl LightPool {
@@ -129,15 +137,26 @@ impl LightPool {
         self.points.clear();
         self.points.resize(blocks, [LightPoint::default(); LANES]);
         let stream = hash(&[seed, index as u64, POOL_STREAM]);
+        // The entries' strata of the light choice, in a random order (Fisher-Yates).
+        let n = blocks * LANES;
+        self.strata.clear();
+        self.strata.extend(0..n as u32);
+        let mut rng = Rng::new(stream, u64::MAX);
+        for i in (1..n).rev() {
+            let j = ((rng.next_u32() as u64 * (i as u64 + 1)) >> 32) as usize;
+            self.strata.swap(i, j);
+        }
+        let strata = &self.strata;
         self.blocks
             .par_chunks_mut(BUILD_CHUNK)
             .zip(self.points.par_chunks_mut(BUILD_CHUNK))
             .enumerate()
             .for_each(|(c, (blocks, points))| {
                 let mut rng = Rng::new(stream, c as u64);
-                for (block, points) in blocks.iter_mut().zip(points) {
+                for (b, (block, points)) in blocks.iter_mut().zip(points).enumerate() {
                     for (k, point) in points.iter_mut().enumerate() {
-                        let u_select = rng.next_f32();
+                        let stratum = strata[(c * BUILD_CHUNK + b) * LANES + k];
+                        let u_select = (stratum as f32 + rng.next_f32()) / n as f32;
                         let u = Vec2::new(rng.next_f32(), rng.next_f32());
                         if let Some((p, density)) = lights.draw(u_select, u) {
                             if density > 0.0 && density.is_finite() {
