@@ -898,7 +898,9 @@ impl Restir {
         for chunk in others.chunks(NEIGHBOUR_LANES) {
             let targets = if let [(q, _)] = chunk {
                 let mut one = [0.0; NEIGHBOUR_LANES];
-                one[0] = receiver.target(lights, &q.sample);
+                if q.weight > 0.0 {
+                    one[0] = receiver.target(lights, &q.sample);
+                }
                 one
             } else {
                 let points = std::array::from_fn(|k| {
