@@ -207,9 +207,21 @@ impl DataDriven {
                 .all(|v| v.is_finite())
         };
         if units == ColourUnits::Variance {
-            self.standard_errors(f, &albedo, &valid);
+            self.neighbourhood_errors(f, &albedo, &valid);
         }
         let errors = &self.errors;
+        // The standard error of the mean of the direct and indirect light's luminance
+        // (demodulated): from the pixel's own variance where the caller knows it, else from
+        // its neighbourhood's (`neighbourhood_errors`).
+        let error = |i: usize, k: usize| {
+            let variance = f.light_variance[i][k];
+            if known(variance) {
+                let a = luminance(albedo(i));
+                (variance / (a * a)).sqrt()
+            } else {
+                errors[i][k]
+            }
+        };
         let r = layout.radius;
         self.planes[r * layout.row..(r + f.height) * layout.row]
             .par_chunks_mut(layout.row)
@@ -217,13 +229,13 @@ impl DataDriven {
             .for_each(|(y, row)| {
                 for x in 0..f.width {
                     let i = y * f.width + x;
-                    let a = albedo(i);
+                    let inv = albedo(i).recip();
                     let values = [
                         f.normal[i],
                         f.albedo[i],
                         f.texture2[i],
-                        f.direct[i] / a,
-                        f.indirect[i] / a,
+                        f.direct[i] * inv,
+                        f.indirect[i] * inv,
                     ];
                     let valid = valid(i);
                     let at = |plane: usize| plane * layout.pitch + x + r;
@@ -242,7 +254,7 @@ impl DataDriven {
                         ColourUnits::Variance => {
                             // At most 100 / (1 + L): a pixel without noise is not a wall.
                             let floor = 0.01 * (1.0 + lum);
-                            errors[i].map(|e| 1.0 / e.max(floor))
+                            [0, 1].map(|k| 1.0 / error(i, k).max(floor))
                         }
                     };
                     row[at(SCALE_D)] = zero_if_invalid(sd);
@@ -251,15 +263,23 @@ impl DataDriven {
             });
     }
 
-    /// The standard error of the mean of the direct and indirect light's luminance
-    /// (demodulated) at every pixel, into `errors`: from the pixel's own variance where the
-    /// caller knows it, else from the 3x3 neighbourhood's variance (a single sample's).
-    fn standard_errors(
+    /// For the pixels whose light's variance the caller does not know (not [`known`]), the
+    /// standard error of the mean of the direct and indirect light's luminance (demodulated)
+    /// from the 3x3 neighbourhood's variance (a single sample's), into `errors` (left alone
+    /// when every variance is known).
+    fn neighbourhood_errors(
         &mut self,
         f: &Features,
         albedo: &(dyn Fn(usize) -> Vec3 + Sync),
         valid: &(dyn Fn(usize) -> bool + Sync),
     ) {
+        let unknown = f
+            .light_variance
+            .par_iter()
+            .any(|v| !(known(v[0]) && known(v[1])));
+        if !unknown {
+            return;
+        }
         let n = f.len();
         self.luminance.resize(n, [0.0; 2]);
         self.luminance
@@ -277,35 +297,37 @@ impl DataDriven {
         let (w, h) = (f.width, f.height);
         self.errors.resize(n, [0.0; 2]);
         self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
-            let a = luminance(albedo(i));
             for k in 0..2 {
-                let known = f.light_variance[i][k];
-                let variance = if known.is_finite() && known >= 0.0 {
-                    known / (a * a)
-                } else {
-                    // The 3x3 neighbourhood's sample variance (valid pixels only).
-                    let (x, y) = (i % w, i / w);
-                    let (mut count, mut sum, mut sq) = (0.0f32, 0.0f32, 0.0f32);
-                    for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                        for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                            let v = lum[yy * w + xx][k];
-                            if v.is_finite() {
-                                count += 1.0;
-                                sum += v;
-                                sq += v * v;
-                            }
+                if known(f.light_variance[i][k]) {
+                    continue;
+                }
+                let (x, y) = (i % w, i / w);
+                let (mut count, mut sum, mut sq) = (0.0f32, 0.0f32, 0.0f32);
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let v = lum[yy * w + xx][k];
+                        if v.is_finite() {
+                            count += 1.0;
+                            sum += v;
+                            sq += v * v;
                         }
                     }
-                    if count > 1.0 {
-                        ((sq - sum * sum / count) / (count - 1.0)).max(0.0)
-                    } else {
-                        0.0
-                    }
+                }
+                let variance = if count > 1.0 {
+                    ((sq - sum * sum / count) / (count - 1.0)).max(0.0)
+                } else {
+                    0.0
                 };
                 e[k] = variance.sqrt();
             }
         });
     }
+}
+
+/// A variance the caller gives (finite and not negative; NaN: not known).
+#[inline]
+fn known(variance: f32) -> bool {
+    variance.is_finite() && variance >= 0.0
 }
 
 /// `1 / (2 sigma^2)` of each test.
@@ -412,6 +434,12 @@ impl Row<'_> {
         for x0 in (0..width).step_by(LANES) {
             let centre = self.centre(x0);
             let sums = self.sums::<M>(x0, &centre);
+            // The weighted means, in lanes.
+            let light: [Lanes; 3] = std::array::from_fn(|c| {
+                std::array::from_fn(|j| {
+                    sums.direct[c][j] / sums.direct_w[j] + sums.indirect[c][j] / sums.indirect_w[j]
+                })
+            });
             for (j, o) in out[x0..(x0 + LANES).min(width)].iter_mut().enumerate() {
                 let i = self.y * width + x0 + j;
                 let f = self.features;
@@ -419,13 +447,7 @@ impl Row<'_> {
                     // Sky or a bad pixel: as it is.
                     f.direct[i] + f.indirect[i]
                 } else {
-                    let d = Vec3::new(sums.direct[0][j], sums.direct[1][j], sums.direct[2][j]);
-                    let n = Vec3::new(
-                        sums.indirect[0][j],
-                        sums.indirect[1][j],
-                        sums.indirect[2][j],
-                    );
-                    let light = d / sums.direct_w[j] + n / sums.indirect_w[j];
+                    let light = Vec3::new(light[0][j], light[1][j], light[2][j]);
                     if self.scales.demodulate {
                         light * demodulator(f.albedo[i])
                     } else {
