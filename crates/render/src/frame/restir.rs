@@ -438,16 +438,10 @@ impl Receiver {
         points: &[LightPoint; N],
         n: usize,
     ) -> [f32; N] {
-        if !self.bsdf.has_lanes() {
-            return std::array::from_fn(|k| {
-                if k < n {
-                    self.target(lights, &points[k])
-                } else {
-                    0.0
-                }
-            });
-        }
         let block = Block::of(lights, points, n);
+        if !self.bsdf.has_lanes() {
+            return self.targets::<false, N>(lights, &block, points);
+        }
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f") {
