@@ -62,8 +62,8 @@
 //!   per frame from the source density, in blocks of 16 that a pixel picks at random (the
 //!   "light tiles" of Wyman and Panteleev 2021). Each candidate is still distributed as the
 //!   source density; pixels that pick the same block share its candidates.
-//! - **Randomness**: each pixel's candidates and resampling come from streams hashed from the
-//!   seed, the pixel and its sample index, its neighbours' start in the offset table from a
+//! - **Randomness**: each pixel's candidates and resampling come from streams mixed from a
+//!   hash of the seed and the pass, the pixel and its sample index, its neighbours' start in the offset table from a
 //!   hash of the same, and the pool from the seed and the sample index, so frames do not
 //!   depend on the thread count.
 //! - **History**: the reservoirs survive camera moves (temporal reuse follows the motion
@@ -664,14 +664,27 @@ pub struct RestirTimes {
     pub rays: u64,
 }
 
-/// The random stream of pixel `pixel`'s pass `pass` (0 candidates, 1 temporal, 2.. spatial
-/// iterations) at sample index `index`.
-#[inline]
-fn pixel_rng(seed: u64, pixel: usize, pass: u64, index: u32) -> Rng {
-    Rng::new(
-        hash(&[seed, pixel as u64, CANDIDATES_STREAM + pass]),
-        index as u64,
-    )
+/// The random streams of the pixels in pass `pass` (0 candidates, 1 temporal, 2.. spatial
+/// iterations) at sample index `index`: the pass's hash of the seed, mixed with the pixel's
+/// index (one mix per pixel).
+#[derive(Debug, Clone, Copy)]
+struct PixelStreams {
+    pass: u64,
+    index: u64,
+}
+
+impl PixelStreams {
+    fn new(seed: u64, pass: u64, index: u32) -> Self {
+        Self {
+            pass: hash(&[seed, CANDIDATES_STREAM + pass]),
+            index: index as u64,
+        }
+    }
+
+    #[inline]
+    fn rng(&self, pixel: usize) -> Rng {
+        Rng::new(mix64(self.pass ^ pixel as u64), self.index)
+    }
 }
 
 /// Reused reservoirs whose targets are computed together (in SIMD lanes).
@@ -803,6 +816,7 @@ impl Restir {
         self.pool.build(lights, POOL_BLOCKS, seed, index);
         let pool = &self.pool;
         let candidates = config.candidates;
+        let streams = PixelStreams::new(seed, 0, index);
         let visibility = config.visibility_reuse;
         let unbiased = config.unbiased;
         times.rays += self
@@ -815,7 +829,7 @@ impl Restir {
                 let Some(receiver) = receiver else {
                     return 0u64;
                 };
-                let mut rng = pixel_rng(seed, pixel, 0, index);
+                let mut rng = streams.rng(pixel);
                 *r = receiver.candidates(pool, lights, candidates, &mut rng);
                 let mut rays = 0;
                 if (visibility || unbiased)
@@ -1003,7 +1017,7 @@ impl Restir {
         index: u32,
     ) -> u64 {
         let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
-        let seed = tracer.config.seed;
+        let streams = PixelStreams::new(tracer.config.seed, 1, index);
         let previous = &self.previous;
         let previous_receivers = &self.previous_receivers;
         let previous_gbuffer = &self.previous_gbuffer;
@@ -1037,7 +1051,7 @@ impl Restir {
                 if config.m_cap > 0 {
                     prev.m = prev.m.min(config.m_cap as f32 * r.m.max(1.0));
                 }
-                let mut rng = pixel_rng(seed, pixel, 1, index);
+                let mut rng = streams.rng(pixel);
                 let mut rays = 0;
                 *r = Self::combine(
                     tracer,
@@ -1084,6 +1098,7 @@ impl Restir {
         // Pixel `p`'s `k`-th neighbour (`None` off screen): the `k`-th offset after one that a
         // hash of the pixel picks.
         let salt = hash(&[seed, index as u64, NEIGHBOURS_STREAM + iteration as u64]);
+        let streams = PixelStreams::new(seed, 2 + iteration as u64, index);
         let neighbour = |p: usize, k: usize| {
             let start = (mix64(salt ^ p as u64) >> 32) as usize;
             let (dx, dy) = offsets[(start + k) % OFFSETS];
@@ -1104,7 +1119,7 @@ impl Restir {
                     return 0;
                 };
                 let key = &keys[pixel];
-                let mut rng = pixel_rng(seed, pixel, 2 + iteration as u64, index);
+                let mut rng = streams.rng(pixel);
                 // The neighbours of a pixel a few ahead on their way to the cache.
                 for q in (0..neighbours).filter_map(|k| neighbour(pixel + AHEAD, k)) {
                     prefetch(&input[q]);
