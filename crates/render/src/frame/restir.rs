@@ -1037,17 +1037,25 @@ impl Restir {
                     return 0;
                 }
                 let q = (py * w + px) as usize;
-                let (Some(prev_receiver), pg) = (&previous_receivers[q], &previous_gbuffer[q])
-                else {
-                    return 0;
-                };
-                if pg.position.distance(g.position) > config.depth_threshold * g.depth
+                // A pixel without a receiver kept an empty reservoir (M = 0). The plain
+                // combination never reads the previous receiver (a cache miss each): only the
+                // unbiased count and the MIS weights do.
+                let (mut prev, pg) = (previous[q], &previous_gbuffer[q]);
+                if prev.m == 0.0
+                    || pg.position.distance(g.position) > config.depth_threshold * g.depth
                     || pg.normal.dot(g.normal) < config.normal_threshold
                     || (pg.albedo - g.albedo).abs().max_element() > ALBEDO_TOLERANCE
                 {
                     return 0;
                 }
-                let mut prev = previous[q];
+                let prev_receiver = if config.unbiased || config.mis {
+                    match &previous_receivers[q] {
+                        Some(other) => other,
+                        None => return 0,
+                    }
+                } else {
+                    receiver
+                };
                 if config.m_cap > 0 {
                     prev.m = prev.m.min(config.m_cap as f32 * r.m.max(1.0));
                 }
