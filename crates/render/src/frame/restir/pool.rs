@@ -3,7 +3,7 @@
 //! [`LANES`] laid out as the SIMD lanes read them. A pixel's candidates are whole blocks
 //! picked uniformly at random from the pool, so the draws (the alias table, the light's
 //! data, a triangle's point and its emissive texture) are paid once per pool entry instead
-//! of once per candidate, and a block's lights load as contiguous vectors instead of eight
+//! of once per candidate, and a block's lights load as contiguous vectors instead of
 //! scattered reads (the "light tiles" of Wyman and Panteleev, "Rearchitecting spatiotemporal
 //! resampling for production", HPG 2021).
 //!
@@ -36,9 +36,10 @@ const BUILD_CHUNK: usize = 64;
 /// Stream tag of the pool's random numbers.
 const POOL_STREAM: u64 = 0x9001_b10c;
 
-/// `N` light points ([`LANES`] in the pool), structure of arrays. Point lights: position `q`, intensity `e`,
-/// `inv_range`; triangles: the point `q`, its emission `e`, the unit normal `n` and the
-/// sidedness. A lane that holds no candidate (a failed draw) has `inv_density` 0.
+/// `N` light points (at most 16; [`LANES`] in the pool), structure of arrays. Point lights:
+/// position `q`, intensity `e`, `inv_range`; triangles: the point `q`, its emission `e`, the
+/// unit normal `n` and the sidedness. A lane that holds no candidate (a failed draw) has
+/// `inv_density` 0.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
 pub struct Block<const N: usize = LANES> {
@@ -78,6 +79,7 @@ impl<const N: usize> Block<N> {
 
     /// Lane `k` holds `point`, drawn with density `density`.
     fn set(&mut self, k: usize, lights: &Lights, point: &LightPoint, density: f32) {
+        const { assert!(N <= 16, "`scalar` has a bit per lane") };
         self.inv_density[k] = 1.0 / density;
         match lights.lane_light(point) {
             Some(LaneLight::Point {
