@@ -209,58 +209,20 @@ impl DataDriven {
         if units == ColourUnits::Variance {
             self.neighbourhood_errors(f, &albedo, &valid);
         }
-        let errors = &self.errors;
-        // The standard error of the mean of the direct and indirect light's luminance
-        // (demodulated): from the pixel's own variance where the caller knows it, else from
-        // its neighbourhood's (`neighbourhood_errors`).
-        let error = |i: usize, k: usize| {
-            let variance = f.light_variance[i][k];
-            if known(variance) {
-                let a = luminance(albedo(i));
-                (variance / (a * a)).sqrt()
-            } else {
-                errors[i][k]
-            }
+        // Sized for the rows' slices even when every variance is known (then never read).
+        self.errors.resize(f.len(), [0.0; 2]);
+        let fill = FillRows {
+            f,
+            errors: &self.errors,
+            layout,
+            units,
+            demodulate,
         };
         let r = layout.radius;
         self.planes[r * layout.row..(r + f.height) * layout.row]
             .par_chunks_mut(layout.row)
             .enumerate()
-            .for_each(|(y, row)| {
-                for x in 0..f.width {
-                    let i = y * f.width + x;
-                    let inv = albedo(i).recip();
-                    let values = [
-                        f.normal[i],
-                        f.albedo[i],
-                        f.texture2[i],
-                        f.direct[i] * inv,
-                        f.indirect[i] * inv,
-                    ];
-                    let valid = valid(i);
-                    let at = |plane: usize| plane * layout.pitch + x + r;
-                    let zero_if_invalid = |v: f32| if valid { v } else { 0.0 };
-                    row[at(VALID)] = zero_if_invalid(1.0);
-                    row[at(D)] = zero_if_invalid(f.depth[i]);
-                    for (plane, v) in [N, T, T2, F0, F1].into_iter().zip(values) {
-                        for c in 0..3 {
-                            row[at(plane + c)] = zero_if_invalid(v[c]);
-                        }
-                    }
-                    let lum = luminance(values[3] + values[4]).max(0.0);
-                    let [sd, si] = match units {
-                        ColourUnits::Linear => [1.0; 2],
-                        ColourUnits::Relative => [1.0 / (1.0 + lum); 2],
-                        ColourUnits::Variance => {
-                            // At most 100 / (1 + L): a pixel without noise is not a wall.
-                            let floor = 0.01 * (1.0 + lum);
-                            [0, 1].map(|k| 1.0 / error(i, k).max(floor))
-                        }
-                    };
-                    row[at(SCALE_D)] = zero_if_invalid(sd);
-                    row[at(SCALE_I)] = zero_if_invalid(si);
-                }
-            });
+            .for_each(|(y, row)| fill.row(y, row));
     }
 
     /// For the pixels whose light's variance the caller does not know (not [`known`]), the
@@ -321,6 +283,113 @@ impl DataDriven {
                 e[k] = variance.sqrt();
             }
         });
+    }
+}
+
+/// One row of the padded planes from the features ([`DataDriven::fill_planes`]): the
+/// features of valid pixels, zeros (and validity 0) for the sky and bad pixels. Written over
+/// the row's slices without branches, so that the compiler vectorises it (AVX-512 or AVX2
+/// chosen at run time).
+struct FillRows<'a> {
+    f: &'a Features<'a>,
+    /// The neighbourhoods' standard errors, for the pixels whose variance is not known.
+    errors: &'a [[f32; 2]],
+    layout: Layout,
+    units: ColourUnits,
+    demodulate: bool,
+}
+
+impl FillRows<'_> {
+    fn row(&self, y: usize, row: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor has AVX-512 (checked just above).
+                return unsafe { self.row_avx512(y, row) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor has AVX2 (checked just above).
+                return unsafe { self.row_avx2(y, row) };
+            }
+        }
+        self.row_lanes(y, row);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn row_avx512(&self, y: usize, row: &mut [f32]) {
+        self.row_lanes(y, row);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn row_avx2(&self, y: usize, row: &mut [f32]) {
+        self.row_lanes(y, row);
+    }
+
+    #[inline(always)]
+    fn row_lanes(&self, y: usize, row: &mut [f32]) {
+        let (f, w, l) = (self.f, self.f.width, self.layout);
+        let span = y * w..(y + 1) * w;
+        let (direct, indirect) = (&f.direct[span.clone()], &f.indirect[span.clone()]);
+        let (depth, normal) = (&f.depth[span.clone()], &f.normal[span.clone()]);
+        let (albedo, texture2) = (&f.albedo[span.clone()], &f.texture2[span.clone()]);
+        let (variance, errors) = (&f.light_variance[span.clone()], &self.errors[span]);
+        let (row, pitch) = (&mut row[..PLANES * l.pitch], l.pitch);
+        for x in 0..w {
+            let a = if self.demodulate {
+                demodulator(albedo[x])
+            } else {
+                Vec3::ONE
+            };
+            let inv = a.recip();
+            let values = [
+                normal[x],
+                albedo[x],
+                texture2[x],
+                direct[x] * inv,
+                indirect[x] * inv,
+            ];
+            let valid = depth[x].is_finite()
+                & normal[x].is_finite()
+                & albedo[x].is_finite()
+                & texture2[x].is_finite()
+                & direct[x].is_finite()
+                & indirect[x].is_finite();
+            let zero_if_invalid = |v: f32| if valid { v } else { 0.0 };
+            let at = x + l.radius;
+            row[VALID * pitch + at] = zero_if_invalid(1.0);
+            row[D * pitch + at] = zero_if_invalid(depth[x]);
+            for (plane, v) in [N, T, T2, F0, F1].into_iter().zip(values) {
+                for c in 0..3 {
+                    row[(plane + c) * pitch + at] = zero_if_invalid(v[c]);
+                }
+            }
+            let lum = luminance(values[3] + values[4]).max(0.0);
+            let [sd, si] = match self.units {
+                ColourUnits::Linear => [1.0; 2],
+                ColourUnits::Relative => [1.0 / (1.0 + lum); 2],
+                ColourUnits::Variance => {
+                    // The standard error of the mean of the direct and indirect light's
+                    // luminance (demodulated): from the pixel's own variance where the caller
+                    // knows it, else from its neighbourhood's (`neighbourhood_errors`). At most
+                    // 100 / (1 + L): a pixel without noise is not a wall.
+                    let la = luminance(a);
+                    let floor = 0.01 * (1.0 + lum);
+                    [0, 1].map(|k| {
+                        let v = variance[x][k];
+                        let e = if known(v) {
+                            (v / (la * la)).sqrt()
+                        } else {
+                            errors[x][k]
+                        };
+                        1.0 / e.max(floor)
+                    })
+                }
+            };
+            row[SCALE_D * pitch + at] = zero_if_invalid(sd);
+            row[SCALE_I * pitch + at] = zero_if_invalid(si);
+        }
     }
 }
 
