@@ -509,16 +509,21 @@ impl Row<'_> {
                     sums.direct[c][j] / sums.direct_w[j] + sums.indirect[c][j] / sums.indirect_w[j]
                 })
             });
-            for (j, o) in out[x0..(x0 + LANES).min(width)].iter_mut().enumerate() {
-                let i = self.y * width + x0 + j;
-                let f = self.features;
-                *o = if self.planes[self.layout.at(x0 + j, self.y)] == 0.0 {
+            // The block's pixels, as slices of their length (no bounds checks in the loop).
+            let n = LANES.min(width - x0);
+            let (f, i0) = (self.features, self.y * width + x0);
+            let (direct, indirect) = (&f.direct[i0..i0 + n], &f.indirect[i0..i0 + n]);
+            let albedo = &f.albedo[i0..i0 + n];
+            let at = self.layout.at(x0, self.y) + VALID * self.layout.pitch;
+            let valid = &self.planes[at..at + n];
+            for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
+                *o = if valid[j] == 0.0 {
                     // Sky or a bad pixel: as it is.
-                    f.direct[i] + f.indirect[i]
+                    direct[j] + indirect[j]
                 } else {
                     let light = Vec3::new(light[0][j], light[1][j], light[2][j]);
                     if self.scales.demodulate {
-                        light * demodulator(f.albedo[i])
+                        light * demodulator(albedo[j])
                     } else {
                         light
                     }
@@ -553,13 +558,11 @@ impl Row<'_> {
             c.indirect[k] = load(F1 + k);
         }
         let width = l.width;
-        for j in 0..LANES {
-            let x = x0 + j;
-            let variance = if x < width {
-                self.features.variance[self.y * width + x]
-            } else {
-                [0.0; 5]
-            };
+        // The feature variances of the block's pixels (zeros past the row's end).
+        let row = &self.features.variance[self.y * width..(self.y + 1) * width];
+        let variances: [[f32; 5]; LANES] =
+            std::array::from_fn(|j| row.get(x0 + j).copied().unwrap_or([0.0; 5]));
+        for (j, variance) in variances.into_iter().enumerate() {
             let depth_scale = if s.relative_depth {
                 1.0 / c.depth[j].max(1e-6)
             } else {
