@@ -187,30 +187,24 @@ impl DataDriven {
             self.planes.resize(rows * layout.row, 0.0);
             self.layout = Some((layout, f.height));
         }
-        let albedo = |i: usize| {
-            if demodulate {
-                demodulator(f.albedo[i])
-            } else {
-                Vec3::ONE
-            }
-        };
+        let albedo = |i: usize| divisor(f.albedo[i], demodulate);
         let valid = |i: usize| {
-            f.depth[i].is_finite()
-                && [
+            valid_pixel(
+                f.depth[i],
+                [
                     f.normal[i],
                     f.albedo[i],
                     f.texture2[i],
                     f.direct[i],
                     f.indirect[i],
-                ]
-                .iter()
-                .all(|v| v.is_finite())
+                ],
+            )
         };
+        // Sized for the rows' slices even when every variance is known (then never read).
+        self.errors.resize(f.len(), [0.0; 2]);
         if units == ColourUnits::Variance {
             self.neighbourhood_errors(f, &albedo, &valid);
         }
-        // Sized for the rows' slices even when every variance is known (then never read).
-        self.errors.resize(f.len(), [0.0; 2]);
         let fill = FillRows {
             f,
             errors: &self.errors,
@@ -257,7 +251,6 @@ impl DataDriven {
             });
         let lum = &self.luminance;
         let (w, h) = (f.width, f.height);
-        self.errors.resize(n, [0.0; 2]);
         self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
             for k in 0..2 {
                 if known(f.light_variance[i][k]) {
@@ -337,11 +330,7 @@ impl FillRows<'_> {
         let (variance, errors) = (&f.light_variance[span.clone()], &self.errors[span]);
         let (row, pitch) = (&mut row[..PLANES * l.pitch], l.pitch);
         for x in 0..w {
-            let a = if self.demodulate {
-                demodulator(albedo[x])
-            } else {
-                Vec3::ONE
-            };
+            let a = divisor(albedo[x], self.demodulate);
             let inv = a.recip();
             let values = [
                 normal[x],
@@ -350,12 +339,10 @@ impl FillRows<'_> {
                 direct[x] * inv,
                 indirect[x] * inv,
             ];
-            let valid = depth[x].is_finite()
-                & normal[x].is_finite()
-                & albedo[x].is_finite()
-                & texture2[x].is_finite()
-                & direct[x].is_finite()
-                & indirect[x].is_finite();
+            let valid = valid_pixel(
+                depth[x],
+                [normal[x], albedo[x], texture2[x], direct[x], indirect[x]],
+            );
             let zero_if_invalid = |v: f32| if valid { v } else { 0.0 };
             let at = x + l.radius;
             row[VALID * pitch + at] = zero_if_invalid(1.0);
@@ -391,6 +378,25 @@ impl FillRows<'_> {
             row[SCALE_I * pitch + at] = zero_if_invalid(si);
         }
     }
+}
+
+/// What a pixel's light is divided by in the planes: its albedo's demodulator, or 1.
+#[inline(always)]
+fn divisor(albedo: Vec3, demodulate: bool) -> Vec3 {
+    if demodulate {
+        demodulator(albedo)
+    } else {
+        Vec3::ONE
+    }
+}
+
+/// A pixel whose depth and feature vectors are all finite (the others pass through and are
+/// nobody's neighbour); without branches, for the vectorised rows.
+#[inline(always)]
+fn valid_pixel(depth: f32, vectors: [Vec3; 5]) -> bool {
+    vectors
+        .iter()
+        .fold(depth.is_finite(), |ok, v| ok & v.is_finite())
 }
 
 /// A variance the caller gives (finite and not negative; NaN: not known).
