@@ -1,13 +1,17 @@
 //! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 16 centre pixels at a
 //! time (one AVX-512 register, or two AVX2 ones, with FMA, as the processor has them): the same
-//! weights, taps and
-//! order of sums as the scalar pass in `svgf.rs`, which stays as the reference (a test holds
-//! them together) and for passes too wide for the planes' padding.
+//! weights, taps and order of sums as the scalar pass in `svgf.rs`, which stays as the reference
+//! (a test holds them together) and for passes too wide for the planes' padding.
 //!
 //! The planes carry a border of `pad` pixels (twice the widest hole) whose normal is zero, so a
 //! tap that falls outside the image weighs exactly 0, as the scalar pass's bounds test gives;
 //! the sky and light sources have a zero normal too (nobody's neighbour). Rows are
-//! `[plane][pitch]` blocks, so each thread writes whole rows.
+//! `[plane][pitch]` blocks, so each thread writes whole rows. A pass with holes of `step` rows
+//! takes the rows of one class modulo `step` one after the other, so the rows its taps read stay
+//! in the cache from one output row to the next (in image order, the holes of 8 and 16 rows
+//! took a third longer than those of 1). Each 16-pixel group writes its result, the pixels that
+//! pass through kept, and the luminances the next pass tests, in lanes; the luminance test's
+//! sigma (the blurred variance) is worked out in the group from the variance planes.
 
 use glam::Vec3;
 use pathlight_core::color::luminance;
@@ -38,14 +42,14 @@ const NX: usize = 1;
 const G: usize = 4;
 /// The sum of the variance blur's weights over the pixels inside the image.
 const SUM: usize = 5;
-const STATIC: usize = 6;
+/// 1 where the pixel passes through (the sky and light sources), else 0.
+const THROUGH: usize = 6;
+const STATIC: usize = 7;
 // Dynamic planes (per pass): direct rgb, indirect rgb, the two variances, the two luminances.
 const L: usize = 0;
 const V: usize = 6;
 const LUM: usize = 8;
 const DYNAMIC: usize = 10;
-/// The planes of the luminance test's two inverse sigmas (per pass).
-const SIGMAS: usize = 2;
 
 /// The variance blur's 3x3 taps (dx, dy, weight), row by row (the order both passes sum in).
 pub const BLUR: [(i64, i64, f32); 9] = [
@@ -104,6 +108,29 @@ impl Grid {
             });
     }
 
+    /// Runs `f(y, row)` on every image row of `buffer` as [`Grid::for_rows`] does, in the
+    /// order a pass with holes of `step` rows reuses best: the rows of one class modulo `step`
+    /// one after the other (so the rows a tap reads stay in the cache from one output row to the
+    /// next, as with `step` 1), in tasks of a few rows.
+    fn for_rows_by(&self, buffer: &mut [f32], step: usize, f: impl Fn(i64, &mut [f32]) + Sync) {
+        const TASK: usize = 16;
+        let (pad, h) = (self.pad, self.height);
+        let mut classes: Vec<Vec<(i64, &mut [f32])>> = (0..step).map(|_| Vec::new()).collect();
+        for (py, row) in buffer.chunks_mut(self.row()).enumerate() {
+            if (pad..pad + h).contains(&py) {
+                let y = py - pad;
+                classes[y % step].push((y as i64, row));
+            }
+        }
+        classes.par_iter_mut().for_each(|class| {
+            class.par_chunks_mut(TASK).for_each(|rows| {
+                for (y, row) in rows {
+                    f(*y, row);
+                }
+            })
+        });
+    }
+
     /// Index of pixel (x, y) (image coordinates, may reach into the border) in plane `p`.
     #[inline(always)]
     fn at(&self, x: i64, y: i64, p: usize) -> usize {
@@ -118,10 +145,7 @@ impl Grid {
 pub struct Planes {
     fixed: Grid,
     moving: Grid,
-    sigma: Grid,
     statics: Vec<f32>,
-    /// The inverse sigmas of the current pass.
-    sigmas: Vec<f32>,
     current: Vec<f32>,
     next: Vec<f32>,
 }
@@ -148,9 +172,6 @@ impl Planes {
         debug_assert!(pad <= MAX_PAD);
         self.fixed = Grid::new(w, h, pad, STATIC);
         self.moving = Grid::new(w, h, pad, DYNAMIC);
-        self.sigma = Grid::new(w, h, pad, SIGMAS);
-        self.sigmas.clear();
-        self.sigmas.resize(self.sigma.len(), 0.0);
         let (fixed, moving) = (self.fixed, self.moving);
         self.statics.clear();
         self.statics.resize(fixed.len(), 0.0);
@@ -160,18 +181,15 @@ impl Planes {
                 let at = |p: usize| p * fixed.pitch + pad + x;
                 row[at(Z)] = f.depth[i];
                 row[at(G)] = f.gradient[i];
-                row[at(SUM)] = BLUR
-                    .iter()
-                    .filter(|(dx, dy, _)| {
-                        (0..w as i64).contains(&(x as i64 + dx))
-                            && (0..h as i64).contains(&(y + dy))
-                    })
-                    .fold(0.0, |sum, (_, _, k)| sum + k);
-                let n = if (f.through)(i) {
-                    Vec3::ZERO
-                } else {
-                    f.normal[i]
+                // The blur is (1/4, 1/2, 1/4) across times the same down: its weights inside
+                // the image sum to the product of the two (exactly: sixteenths).
+                let inside = |c: usize, n: usize| {
+                    1.0 - if c == 0 { 0.25 } else { 0.0 } - if c + 1 == n { 0.25 } else { 0.0 }
                 };
+                row[at(SUM)] = inside(x, w) * inside(y as usize, h);
+                let through = (f.through)(i);
+                row[at(THROUGH)] = if through { 1.0 } else { 0.0 };
+                let n = if through { Vec3::ZERO } else { f.normal[i] };
                 for k in 0..3 {
                     row[at(NX + k)] = n[k];
                 }
@@ -198,88 +216,63 @@ impl Planes {
 
     /// The current light of every pixel, row-major.
     pub fn light(&self, out: &mut Vec<[Vec3; 2]>) {
+        out.resize(self.moving.width * self.moving.height, [Vec3::ZERO; 2]);
+        self.map_light(out, |_, light| light);
+    }
+
+    /// `f(i, light)` of every pixel `i` (row-major) and its current light, into `out` (one
+    /// entry a pixel).
+    pub fn map_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, [Vec3; 2]) -> T + Sync) {
         let g = self.moving;
-        out.clear();
-        out.extend((0..g.width * g.height).map(|i| {
-            let (x, y) = ((i % g.width) as i64, (i / g.width) as i64);
-            let c = |p: usize| self.current[g.at(x, y, p)];
-            [
-                Vec3::new(c(L), c(L + 1), c(L + 2)),
-                Vec3::new(c(L + 3), c(L + 4), c(L + 5)),
-            ]
-        }));
+        out.par_chunks_mut(g.width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let at = |p: usize| &self.current[g.at(0, y as i64, p)..][..g.width];
+                let planes: [&[f32]; 6] = std::array::from_fn(|p| at(L + p));
+                for (x, o) in row.iter_mut().enumerate() {
+                    let c = |p: usize| planes[p][x];
+                    *o = f(
+                        y * g.width + x,
+                        [Vec3::new(c(0), c(1), c(2)), Vec3::new(c(3), c(4), c(5))],
+                    );
+                }
+            });
     }
 
     /// One pass of a kernel `kernel` pixels wide (3 or 5) with holes of `step` pixels:
     /// `current` filtered into `next`, then swapped.
-    pub fn pass(
-        &mut self,
-        kernel: u32,
-        step: usize,
-        sigma_l: f32,
-        sigma_z: f32,
-        through: &(dyn Fn(usize) -> bool + Sync),
-    ) {
+    pub fn pass(&mut self, kernel: u32, step: usize, sigma_l: f32, sigma_z: f32) {
         let g = self.moving;
         // What makes the passes' unchecked loads (`Pass::lanes`) safe: every tap of a 5x5
         // kernel with holes of `step` lies within the padding.
         assert!(
-            2 * step <= g.pad && g.pad == self.fixed.pad && g.pad == self.sigma.pad,
+            2 * step <= g.pad && g.pad == self.fixed.pad,
             "holes of {step} pixels need a padding of {}, the planes have {}",
             2 * step,
             g.pad
         );
-        self.inverse_sigmas(sigma_l);
         let pass = Pass {
             fixed: self.fixed,
             moving: g,
-            sigma: self.sigma,
             statics: &self.statics,
-            sigmas: &self.sigmas,
+            sigma_l,
             current: &self.current,
             step: step as i64,
             sigma_z,
             wide: kernel != 3,
         };
-        g.for_rows(&mut self.next, |y, row| pass.row(y, row, through));
+        g.for_rows_by(&mut self.next, step, |y, row| pass.row(y, row));
         std::mem::swap(&mut self.current, &mut self.next);
-    }
-
-    /// The luminance test's `1 / (sigma_l sqrt(g(var)) + 1e-4)` per pixel and signal, g the
-    /// variance's 3x3 Gaussian over the pixels inside the image (the scalar pass's: the
-    /// border's zeros add nothing, and plane `SUM` holds the same normalisation, summed in the
-    /// same order).
-    fn inverse_sigmas(&mut self, sigma_l: f32) {
-        let (fg, g, sg) = (self.fixed, self.moving, self.sigma);
-        let w = g.width;
-        let (current, statics) = (&self.current, &self.statics);
-        sg.for_rows(&mut self.sigmas, |y, row| {
-            let sum = &statics[fg.at(0, y, SUM)..][..w];
-            for sig in 0..SIGMAS {
-                let out = &mut row[sig * sg.pitch + sg.pad..][..w];
-                out.fill(0.0);
-                for &(dx, dy, k) in &BLUR {
-                    let v = &current[g.at(dx, y + dy, V + sig)..][..w];
-                    for (a, v) in out.iter_mut().zip(v) {
-                        *a += v * k;
-                    }
-                }
-                for (o, s) in out.iter_mut().zip(sum) {
-                    *o = 1.0 / (sigma_l * (*o / s).sqrt() + 1e-4);
-                }
-            }
-        });
     }
 }
 
 struct Pass<'a> {
     fixed: Grid,
     moving: Grid,
-    sigma: Grid,
-    sigmas: &'a [f32],
     statics: &'a [f32],
     current: &'a [f32],
     step: i64,
+    sigma_l: f32,
     sigma_z: f32,
     /// The 5x5 kernel (else 3x3).
     wide: bool,
@@ -295,57 +288,23 @@ struct Sums {
 
 impl Pass<'_> {
     /// Row `y` of the output into `row` (its `[plane][pitch]` block).
-    fn row(&self, y: i64, row: &mut [f32], through: &(dyn Fn(usize) -> bool + Sync)) {
-        let g = self.moving;
-        for x0 in (0..g.width).step_by(LANES) {
-            let sums = self.group(x0 as i64, y);
-            for j in 0..LANES.min(g.width - x0) {
-                let x = x0 + j;
-                let at = |p: usize| p * g.pitch + g.pad + x;
-                let i = y as usize * g.width + x;
-                if through(i) {
-                    for p in L..LUM {
-                        row[at(p)] = self.current[g.at(x as i64, y, p)];
-                    }
-                    continue;
-                }
-                for s in 0..2 {
-                    let sw = sums.w[s][j];
-                    let c = Vec3::new(
-                        sums.light[3 * s][j],
-                        sums.light[3 * s + 1][j],
-                        sums.light[3 * s + 2][j],
-                    ) / sw;
-                    for k in 0..3 {
-                        row[at(L + 3 * s + k)] = c[k];
-                    }
-                    row[at(V + s)] = sums.var[s][j] / (sw * sw);
-                }
-            }
-            for j in 0..LANES.min(g.width - x0) {
-                let at = |p: usize| p * g.pitch + g.pad + x0 + j;
-                for s in 0..2 {
-                    let c = Vec3::new(
-                        row[at(L + 3 * s)],
-                        row[at(L + 3 * s + 1)],
-                        row[at(L + 3 * s + 2)],
-                    );
-                    row[at(LUM + s)] = luminance(c);
-                }
-            }
+    fn row(&self, y: i64, row: &mut [f32]) {
+        for x0 in (0..self.moving.width).step_by(LANES) {
+            self.group(x0 as i64, y, row);
         }
     }
 
-    fn group(&self, x0: i64, y: i64) -> Sums {
+    /// The [`LANES`] pixels from (x0, y) on, filtered into `row`.
+    fn group(&self, x0: i64, y: i64, row: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("fma") {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 // SAFETY: the processor has AVX-512 and FMA (checked just above).
                 return unsafe {
                     if self.wide {
-                        self.group_avx512::<2>(x0, y)
+                        self.group_avx512::<2>(x0, y, row)
                     } else {
-                        self.group_avx512::<1>(x0, y)
+                        self.group_avx512::<1>(x0, y, row)
                     }
                 };
             }
@@ -353,30 +312,30 @@ impl Pass<'_> {
                 // SAFETY: the processor has AVX2 and FMA (checked just above).
                 return unsafe {
                     if self.wide {
-                        self.group_avx2::<2>(x0, y)
+                        self.group_avx2::<2>(x0, y, row)
                     } else {
-                        self.group_avx2::<1>(x0, y)
+                        self.group_avx2::<1>(x0, y, row)
                     }
                 };
             }
         }
         if self.wide {
-            self.group_lanes::<Plain, 2>(x0, y)
+            self.group_lanes::<Plain, 2>(x0, y, row)
         } else {
-            self.group_lanes::<Plain, 1>(x0, y)
+            self.group_lanes::<Plain, 1>(x0, y, row)
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn group_avx2<const R: i64>(&self, x0: i64, y: i64) -> Sums {
-        self.group_lanes::<crate::exp::Fused, R>(x0, y)
+    fn group_avx2<const R: i64>(&self, x0: i64, y: i64, row: &mut [f32]) {
+        self.group_lanes::<crate::exp::Fused, R>(x0, y, row)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,fma")]
-    fn group_avx512<const R: i64>(&self, x0: i64, y: i64) -> Sums {
-        self.group_lanes::<crate::exp::Fused, R>(x0, y)
+    fn group_avx512<const R: i64>(&self, x0: i64, y: i64, row: &mut [f32]) {
+        self.group_lanes::<crate::exp::Fused, R>(x0, y, row)
     }
 
     /// The [`LANES`] values of `buffer` from `at` on, without a bounds check: a pass reads its taps
@@ -394,9 +353,55 @@ impl Pass<'_> {
         unsafe { std::ptr::read_unaligned(buffer.as_ptr().add(at).cast::<Lanes>()) }
     }
 
-    /// The sums of a kernel of radius `R` (1: 3x3, 2: 5x5).
+    /// The [`LANES`] pixels from (x0, y) on filtered by a kernel of radius `R` (1: 3x3, 2: 5x5)
+    /// into `row`: the weighted means, the pixels that pass through kept as they are, and the
+    /// luminances of the result.
     #[inline(always)]
-    fn group_lanes<M: MulAdd, const R: i64>(&self, x0: i64, y: i64) -> Sums {
+    fn group_lanes<M: MulAdd, const R: i64>(&self, x0: i64, y: i64, row: &mut [f32]) {
+        let s = self.sums::<M, R>(x0, y);
+        let g = self.moving;
+        // SAFETY: the centre group lies within the image.
+        let through = unsafe { Self::lanes(self.statics, self.fixed.at(x0, y, THROUGH)) };
+        let keep = |p: usize, value: Lanes| -> Lanes {
+            // SAFETY: as above.
+            let current = unsafe { Self::lanes(self.current, g.at(x0, y, p)) };
+            std::array::from_fn(|j| {
+                if through[j] != 0.0 {
+                    current[j]
+                } else {
+                    value[j]
+                }
+            })
+        };
+        let n = LANES.min(g.width - x0 as usize);
+        let mut put = |p: usize, value: &Lanes| {
+            let at = p * g.pitch + g.pad + x0 as usize;
+            row[at..at + n].copy_from_slice(&value[..n]);
+        };
+        for sig in 0..2 {
+            let sw = s.w[sig];
+            let c: [Lanes; 3] = std::array::from_fn(|k| {
+                let light = &s.light[3 * sig + k];
+                keep(L + 3 * sig + k, std::array::from_fn(|j| light[j] / sw[j]))
+            });
+            for (k, c) in c.iter().enumerate() {
+                put(L + 3 * sig + k, c);
+            }
+            let var = &s.var[sig];
+            put(
+                V + sig,
+                &keep(V + sig, std::array::from_fn(|j| var[j] / (sw[j] * sw[j]))),
+            );
+            put(
+                LUM + sig,
+                &std::array::from_fn(|j| luminance(Vec3::new(c[0][j], c[1][j], c[2][j]))),
+            );
+        }
+    }
+
+    /// The weighted sums of a kernel of radius `R` over the [`LANES`] pixels from (x0, y) on.
+    #[inline(always)]
+    fn sums<M: MulAdd, const R: i64>(&self, x0: i64, y: i64) -> Sums {
         let h = spline(2 * R as u32 + 1);
         let (fg, mg) = (self.fixed, self.moving);
         // SAFETY (both): the taps lie within the padding (asserted by `Planes::pass`), the
@@ -407,8 +412,20 @@ impl Pass<'_> {
         let gz = st(G, x0, y);
         let nc = [st(NX, x0, y), st(NX + 1, x0, y), st(NX + 2, x0, y)];
         let lc = [dy(LUM, x0, y), dy(LUM + 1, x0, y)];
-        // SAFETY: the centre group lies within the image.
-        let inv = [0, 1].map(|s| unsafe { Self::lanes(self.sigmas, self.sigma.at(x0, y, s)) });
+        // The luminance test's `1 / (sigma_l sqrt(g(var)) + 1e-4)`, g the variance's 3x3
+        // Gaussian over the pixels inside the image (the scalar pass's: the border's zeros add
+        // nothing, and plane `SUM` holds the same normalisation, summed in the same order).
+        let sum = st(SUM, x0, y);
+        let inv: [Lanes; 2] = [V, V + 1].map(|p| {
+            let mut g = [0.0f32; LANES];
+            for &(dx, dy_, k) in &BLUR {
+                let v = dy(p, x0 + dx, y + dy_);
+                for j in 0..LANES {
+                    g[j] += v[j] * k;
+                }
+            }
+            std::array::from_fn(|j| 1.0 / (self.sigma_l * (g[j] / sum[j]).sqrt() + 1e-4))
+        });
         // The centre tap: the kernel's weight whatever the tests say.
         let kc = h[0] * h[0];
         let mut s = Sums::default();

@@ -172,12 +172,13 @@ impl Svgf {
                 pad / 2,
             );
             for i in 0..iterations {
-                self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z, &through);
+                self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
                 if i == 0 {
                     self.planes.light(&mut self.history);
                 }
             }
-            self.planes.light(&mut self.light);
+            self.planes
+                .map_light(out, |i, [d, n]| remodulate(f, i, d + n));
         } else {
             for i in 0..iterations {
                 self.atrous(f, kernel, 1 << i);
@@ -187,6 +188,9 @@ impl Svgf {
                     self.history.clone_from(&self.light);
                 }
             }
+            out.par_iter_mut()
+                .enumerate()
+                .for_each(|(i, o)| *o = remodulate(f, i, self.light[i][0] + self.light[i][1]));
         }
         if iterations == 0 {
             self.history.clone_from(&self.light);
@@ -197,14 +201,6 @@ impl Svgf {
         self.depth.extend_from_slice(f.depth);
         self.normal.clear();
         self.normal.extend_from_slice(f.normal);
-        out.par_iter_mut().enumerate().for_each(|(i, o)| {
-            *o = if passes_through(f, i) {
-                f.direct[i] + f.indirect[i]
-            } else {
-                let [d, n] = self.light[i];
-                (d + n) * demodulator(f.albedo[i])
-            };
-        });
         Ok(())
     }
 
@@ -438,6 +434,16 @@ impl Svgf {
                     out_v[s] = acc_v[s] / (sum_w[s] * sum_w[s]);
                 }
             });
+    }
+}
+
+/// Pixel `i`'s output for its filtered (demodulated) `light`: the light times the albedo, or
+/// this frame's light where the pixel passes through.
+fn remodulate(f: &SvgfFrame, i: usize, light: Vec3) -> Vec3 {
+    if passes_through(f, i) {
+        f.direct[i] + f.indirect[i]
+    } else {
+        light * demodulator(f.albedo[i])
     }
 }
 
