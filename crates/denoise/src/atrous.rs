@@ -96,22 +96,13 @@ impl Grid {
     /// Runs `f(y, row)` on every image row of `buffer` (a buffer of this layout), in parallel;
     /// the border's rows are left alone.
     fn for_rows(&self, buffer: &mut [f32], f: impl Fn(i64, &mut [f32]) + Sync) {
-        let (pad, h) = (self.pad as i64, self.height as i64);
-        buffer
-            .par_chunks_mut(self.row())
-            .enumerate()
-            .for_each(|(py, row)| {
-                let y = py as i64 - pad;
-                if (0..h).contains(&y) {
-                    f(y, row);
-                }
-            });
+        self.for_rows_by(buffer, 1, f);
     }
 
-    /// Runs `f(y, row)` on every image row of `buffer` as [`Grid::for_rows`] does, in the
-    /// order a pass with holes of `step` rows reuses best: the rows of one class modulo `step`
-    /// one after the other (so the rows a tap reads stay in the cache from one output row to the
-    /// next, as with `step` 1), in tasks of a few rows.
+    /// Runs `f(y, row)` on every image row of `buffer` (the border's rows left alone), in
+    /// parallel, in the order a pass with holes of `step` rows reuses best: the rows of one
+    /// class modulo `step` one after the other (so the rows a tap reads stay in the cache from
+    /// one output row to the next, as with `step` 1), in tasks of a few rows.
     fn for_rows_by(&self, buffer: &mut [f32], step: usize, f: impl Fn(i64, &mut [f32]) + Sync) {
         const TASK: usize = 16;
         let (pad, h) = (self.pad, self.height);

@@ -143,6 +143,9 @@ impl Svgf {
                 });
             }
         }
+        if n == 0 {
+            return Ok(());
+        }
         if (self.width, self.height) != (f.width, f.height) || self.length.len() != n {
             self.width = f.width;
             self.height = f.height;

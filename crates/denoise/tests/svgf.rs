@@ -97,6 +97,24 @@ fn a_constant_image_stays_constant() {
 }
 
 #[test]
+fn images_without_pixels_or_one_pixel_wide_are_filtered() {
+    for (w, h) in [(0, 0), (0, 7), (7, 0), (1, 1), (1, 9), (9, 1), (17, 2)] {
+        let f = Frame::flat(w, h, 0.3);
+        for kernel in [5, 3] {
+            let mut svgf = Svgf::new();
+            for _ in 0..3 {
+                for o in f.run_with(&mut svgf, kernel) {
+                    assert!(
+                        (o - Vec3::splat(0.33)).abs().max_element() < 1e-5,
+                        "{w}x{h}: {o}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn a_still_wall_settles_with_fresh_noise_every_frame() {
     for kernel in [5, 3] {
         a_still_wall_settles(kernel);
