@@ -63,9 +63,9 @@
 //!   "light tiles" of Wyman and Panteleev 2021). Each candidate is still distributed as the
 //!   source density; pixels that pick the same block share its candidates.
 //! - **Randomness**: each pixel's candidates and resampling come from streams mixed from a
-//!   hash of the seed and the pass, the pixel and its sample index, its neighbours' start in the offset table from a
-//!   hash of the same, and the pool from the seed and the sample index, so frames do not
-//!   depend on the thread count.
+//!   hash of the seed and the pass, the pixel and its sample index, its neighbours' start in
+//!   the offset table from a hash of the same, and the pool from the seed and the sample
+//!   index, so frames do not depend on the thread count.
 //! - **History**: the reservoirs survive camera moves (temporal reuse follows the motion
 //!   vectors) and frames that do not accumulate; any other change of the settings, a reset or
 //!   a new resolution forgets them.
@@ -664,26 +664,53 @@ pub struct RestirTimes {
     pub rays: u64,
 }
 
+/// A pass's hash mixed with a pixel's index: one mix per pixel.
+#[derive(Debug, Clone, Copy)]
+struct PixelHash(u64);
+
+impl PixelHash {
+    #[inline]
+    fn of(self, pixel: usize) -> u64 {
+        mix64(self.0 ^ pixel as u64)
+    }
+}
+
 /// The random streams of the pixels in pass `pass` (0 candidates, 1 temporal, 2.. spatial
-/// iterations) at sample index `index`: the pass's hash of the seed, mixed with the pixel's
-/// index (one mix per pixel).
+/// iterations) at sample index `index`, from the pass's hash of the seed.
 #[derive(Debug, Clone, Copy)]
 struct PixelStreams {
-    pass: u64,
+    pass: PixelHash,
     index: u64,
 }
 
 impl PixelStreams {
     fn new(seed: u64, pass: u64, index: u32) -> Self {
         Self {
-            pass: hash(&[seed, CANDIDATES_STREAM + pass]),
+            pass: PixelHash(hash(&[seed, CANDIDATES_STREAM + pass])),
             index: index as u64,
         }
     }
 
     #[inline]
     fn rng(&self, pixel: usize) -> Rng {
-        Rng::new(mix64(self.pass ^ pixel as u64), self.index)
+        Rng::new(self.pass.of(pixel), self.index)
+    }
+}
+
+/// The receiver a reused reservoir from pixel `q` is combined with: `q`'s own where the
+/// combination reads it (the unbiased count and the MIS weights; `None` when `q` has none),
+/// else `here`, which the plain combination never reads (and `q`'s would be a cache miss).
+#[inline]
+fn other_receiver<'a>(
+    config: &RestirConfig,
+    receivers: &'a [Option<Receiver>],
+    q: usize,
+    here: &'a Receiver,
+) -> Option<&'a Receiver> {
+    if config.unbiased || config.mis {
+        receivers[q].as_ref()
+    } else {
+        Some(here)
     }
 }
 
@@ -1037,9 +1064,7 @@ impl Restir {
                     return 0;
                 }
                 let q = (py * w + px) as usize;
-                // A pixel without a receiver kept an empty reservoir (M = 0). The plain
-                // combination never reads the previous receiver (a cache miss each): only the
-                // unbiased count and the MIS weights do.
+                // A pixel without a receiver kept an empty reservoir (M = 0).
                 let (mut prev, pg) = (previous[q], &previous_gbuffer[q]);
                 if prev.m == 0.0
                     || pg.position.distance(g.position) > config.depth_threshold * g.depth
@@ -1048,13 +1073,9 @@ impl Restir {
                 {
                     return 0;
                 }
-                let prev_receiver = if config.unbiased || config.mis {
-                    match &previous_receivers[q] {
-                        Some(other) => other,
-                        None => return 0,
-                    }
-                } else {
-                    receiver
+                let Some(prev_receiver) = other_receiver(config, previous_receivers, q, receiver)
+                else {
+                    return 0;
                 };
                 if config.m_cap > 0 {
                     prev.m = prev.m.min(config.m_cap as f32 * r.m.max(1.0));
@@ -1105,10 +1126,14 @@ impl Restir {
         let offsets = &self.offsets;
         // Pixel `p`'s `k`-th neighbour (`None` off screen): the `k`-th offset after one that a
         // hash of the pixel picks.
-        let salt = hash(&[seed, index as u64, NEIGHBOURS_STREAM + iteration as u64]);
+        let starts = PixelHash(hash(&[
+            seed,
+            index as u64,
+            NEIGHBOURS_STREAM + iteration as u64,
+        ]));
         let streams = PixelStreams::new(seed, 2 + iteration as u64, index);
         let neighbour = |p: usize, k: usize| {
-            let start = (mix64(salt ^ p as u64) >> 32) as usize;
+            let start = (starts.of(p) >> 32) as usize;
             let (dx, dy) = offsets[(start + k) % OFFSETS];
             let (x, y) = (p as i64 % w + dx as i64, p as i64 / w + dy as i64);
             (x >= 0 && y >= 0 && x < w && y < h).then_some((y * w + x) as usize)
@@ -1136,21 +1161,13 @@ impl Restir {
                 // The neighbours taken (a vector per thread, kept across pixels).
                 others.clear();
                 for q in (0..neighbours).filter_map(|k| neighbour(pixel, k)) {
-                    // A pixel without a receiver has an empty reservoir (M = 0). The plain
-                    // combination never reads the neighbour's receiver (a cache miss each):
-                    // only the unbiased count and the MIS weights do.
+                    // A pixel without a receiver has an empty reservoir (M = 0).
                     if input[q].m == 0.0 || !similar(key, &keys[q], config) {
                         continue;
                     }
-                    let other = if config.unbiased || config.mis {
-                        match &receivers[q] {
-                            Some(other) => other,
-                            None => continue,
-                        }
-                    } else {
-                        receiver
-                    };
-                    others.push((input[q], other));
+                    if let Some(other) = other_receiver(config, receivers, q, receiver) {
+                        others.push((input[q], other));
+                    }
                 }
                 let mut rays = 0;
                 *out = Self::combine(
