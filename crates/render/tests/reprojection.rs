@@ -486,6 +486,14 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         iterations: 4,
         ..Default::default()
     };
+    tuned.frame.filter = pathlight_denoise::FilterConfig {
+        method: pathlight_denoise::Method::None,
+        kernel: 7,
+        holes: true,
+        atrous_iterations: 3,
+        atrous_kernel: 3,
+        ..Default::default()
+    };
     let run = |cfg: &Config| {
         let mut pipeline = Pipeline::new(cfg.clone());
         let mut images = Vec::new();
@@ -494,7 +502,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
             for _ in 0..2 {
                 pipeline.render_frame(&world);
             }
-            images.push(pipeline.history.clone());
+            images.push((pipeline.history.clone(), pipeline.filter.image.clone()));
         }
         images
     };
