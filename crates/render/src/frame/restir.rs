@@ -1124,21 +1124,25 @@ impl Restir {
             self.offsets_radius = config.radius;
         }
         let offsets = &self.offsets;
-        // Pixel `p`'s `k`-th neighbour (`None` off screen): the `k`-th offset after one that a
-        // hash of the pixel picks.
+        // Pixel `p`'s neighbours (those off screen left out): the offsets that follow one a hash
+        // of the pixel picks.
         let starts = PixelHash(hash(&[
             seed,
             index as u64,
             NEIGHBOURS_STREAM + iteration as u64,
         ]));
         let streams = PixelStreams::new(seed, 2 + iteration as u64, index);
-        let neighbour = |p: usize, k: usize| {
+        // (The pixel's coordinates and start computed once, not per neighbour: a division and
+        // a hash each.)
+        let neighbours_of = |p: usize| {
             let start = (starts.of(p) >> 32) as usize;
-            let (dx, dy) = offsets[(start + k) % OFFSETS];
-            let (x, y) = (p as i64 % w + dx as i64, p as i64 / w + dy as i64);
-            (x >= 0 && y >= 0 && x < w && y < h).then_some((y * w + x) as usize)
+            let (px, py) = (p as i64 % w, p as i64 / w);
+            (start..start + config.neighbours as usize).filter_map(move |i| {
+                let (dx, dy) = offsets[i % OFFSETS];
+                let (x, y) = (px + dx as i64, py + dy as i64);
+                (x >= 0 && y >= 0 && x < w && y < h).then_some((y * w + x) as usize)
+            })
         };
-        let neighbours = config.neighbours as usize;
         let keys = &self.keys;
         let input = &self.reservoirs;
         let receivers = &self.receivers;
@@ -1154,13 +1158,13 @@ impl Restir {
                 let key = &keys[pixel];
                 let mut rng = streams.rng(pixel);
                 // The neighbours of a pixel a few ahead on their way to the cache.
-                for q in (0..neighbours).filter_map(|k| neighbour(pixel + AHEAD, k)) {
+                for q in neighbours_of(pixel + AHEAD) {
                     prefetch(&input[q]);
                     prefetch(&keys[q]);
                 }
                 // The neighbours taken (a vector per thread, kept across pixels).
                 others.clear();
-                for q in (0..neighbours).filter_map(|k| neighbour(pixel, k)) {
+                for q in neighbours_of(pixel) {
                     // A pixel without a receiver has an empty reservoir (M = 0).
                     if input[q].m == 0.0 || !similar(key, &keys[q], config) {
                         continue;
