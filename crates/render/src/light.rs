@@ -188,6 +188,29 @@ pub struct Lights {
     /// O(1) lookup, no hashing.
     instance_base: Vec<u32>,
     triangle_lights: Vec<u32>,
+    /// Per light, what [`lane_light`](Self::lane_light) reads (one lookup per candidate
+    /// instead of the selection table's, the triangle's, the emitter's and the punctual
+    /// light's).
+    lanes: Vec<LaneEntry>,
+}
+
+/// A light as the SIMD lanes read it ([`Lights::lane_light`]).
+#[derive(Debug, Clone, Copy)]
+enum LaneEntry {
+    /// Not in the lanes: spot and directional lights, the environment, lights that cannot
+    /// be selected.
+    None,
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+        inv_range: f32,
+    },
+    /// An emissive triangle, with its emission when that has no texture.
+    Triangle {
+        normal: Vec3,
+        two_sided: bool,
+        emission: Option<Vec3>,
+    },
 }
 
 /// glTF's range window (1 without range).
@@ -430,7 +453,7 @@ impl Lights {
                 *w = if *w > 0.0 { 1.0 } else { 0.0 };
             }
         }
-        Self {
+        let mut lights = Self {
             count: weights.len(),
             selection: AliasTable::new(&weights),
             triangles,
@@ -441,6 +464,38 @@ impl Lights {
             environment,
             instance_base,
             triangle_lights,
+            lanes: Vec::new(),
+        };
+        lights.lanes = (0..lights.count).map(|i| lights.lane_entry(i)).collect();
+        lights
+    }
+
+    /// Light `index` as [`lane_light`](Self::lane_light) reads it.
+    fn lane_entry(&self, index: usize) -> LaneEntry {
+        let select = self.selection_pmf(index);
+        if !(select > 0.0 && select.is_finite()) {
+            return LaneEntry::None;
+        }
+        if let Some(t) = self.triangles.get(index) {
+            let e = &self.emitters[t.emitter as usize];
+            let textured = e.texture.is_some() && t.uvs != NONE;
+            return LaneEntry::Triangle {
+                normal: t.normal,
+                two_sided: t.two_sided,
+                emission: (!textured).then_some(e.emissive),
+            };
+        }
+        match self.punctual.get(index - self.triangles.len()) {
+            Some(&Punctual::Point {
+                position,
+                intensity,
+                inv_range,
+            }) => LaneEntry::Point {
+                position,
+                intensity,
+                inv_range,
+            },
+            _ => LaneEntry::None,
         }
     }
 
@@ -542,32 +597,28 @@ impl Lights {
     #[inline]
     pub fn lane_light(&self, point: &LightPoint) -> Option<LaneLight> {
         let index = point.light as usize;
-        if index >= self.count {
-            return None;
-        }
-        let select = self.selection_pmf(index);
-        if !(select > 0.0 && select.is_finite()) {
-            return None;
-        }
-        if let Some(t) = self.triangles.get(index) {
-            return Some(LaneLight::Triangle {
-                point: point.point,
-                normal: t.normal,
-                two_sided: t.two_sided,
-                emission: self.triangle_radiance(t, point.bary),
-            });
-        }
-        match self.punctual.get(index - self.triangles.len()) {
-            Some(&Punctual::Point {
+        match *self.lanes.get(index)? {
+            LaneEntry::None => None,
+            LaneEntry::Point {
                 position,
                 intensity,
                 inv_range,
-            }) => Some(LaneLight::Point {
+            } => Some(LaneLight::Point {
                 position,
                 intensity,
                 inv_range,
             }),
-            _ => None,
+            LaneEntry::Triangle {
+                normal,
+                two_sided,
+                emission,
+            } => Some(LaneLight::Triangle {
+                point: point.point,
+                normal,
+                two_sided,
+                emission: emission
+                    .unwrap_or_else(|| self.triangle_radiance(&self.triangles[index], point.bary)),
+            }),
         }
     }
 
