@@ -119,6 +119,9 @@ pub struct FilterConfig {
     pub rpf_noise: f32,
     /// RPF: the technical report's outlier step after each pass, the pixel's mean kept.
     pub rpf_outliers: bool,
+    /// RPF: filter each sample's colour divided by its base colour, then multiply it back
+    /// (not in the paper).
+    pub rpf_demodulate: bool,
 }
 
 impl Default for FilterConfig {
@@ -143,6 +146,7 @@ impl Default for FilterConfig {
             rpf_boxes: vec![55, 35, 17, 7],
             rpf_noise: 0.02,
             rpf_outliers: true,
+            rpf_demodulate: false,
         }
     }
 }
@@ -207,6 +211,7 @@ impl FilterConfig {
             boxes: self.rpf_boxes.clone(),
             noise: self.rpf_noise,
             outliers: self.rpf_outliers,
+            demodulate: self.rpf_demodulate,
             seed,
         }
     }

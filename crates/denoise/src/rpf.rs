@@ -43,6 +43,11 @@
 //!   bright sample). Without it, isolated bright samples survive every pass: their normalised
 //!   colour is far from every neighbour's.
 //! - Non-finite values in a sample are read as 0 (one bad sample does not spread).
+//! - Optionally (`demodulate`, not in the paper or the thesis), each sample's colour is
+//!   divided by its base colour (a feature of the vector; channels at or below 0.001 are not
+//!   divided) before the passes and multiplied back, sample by sample, after them: the
+//!   dependencies, weights and outlier step then see the illumination, and texture detail is
+//!   no noise to average.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
@@ -91,6 +96,10 @@ pub struct RpfParams {
     pub noise: f32,
     /// After each pass, pull each pixel's outlying samples to its mean (keeping the mean).
     pub outliers: bool,
+    /// Filter each sample's colour divided by its base colour (the set's
+    /// [`albedo`](SampleSet::albedo) features), then multiply it back, sample by sample
+    /// (not in the paper: texture detail is then no noise to average).
+    pub demodulate: bool,
     /// Seed of the neighbourhoods' random draws.
     pub seed: u64,
 }
@@ -101,6 +110,7 @@ impl Default for RpfParams {
             boxes: vec![55, 35, 17, 7],
             noise: 0.02,
             outliers: true,
+            demodulate: false,
             seed: 0,
         }
     }
@@ -150,6 +160,9 @@ pub struct SampleSet {
     pub spp: usize,
     pub random: usize,
     pub kinds: Vec<FeatureKind>,
+    /// The index in `kinds` of the first of three features that are the sample's base colour
+    /// (RGB), for [`RpfParams::demodulate`]; `None` without one.
+    pub albedo: Option<usize>,
     pub data: Vec<f32>,
 }
 
@@ -186,6 +199,7 @@ impl SampleSet {
             spp,
             random,
             kinds,
+            albedo: None,
             data: vec![0.0; len],
         })
     }
@@ -212,6 +226,38 @@ impl SampleSet {
     /// Offset of the colour in a sample vector.
     fn colour(&self) -> usize {
         2 + self.random + self.kinds.len()
+    }
+
+    /// With [`RpfParams::demodulate`], each sample's base colour (its channels at or below
+    /// [`MIN_ALBEDO`] read as 1: nothing divided) from the sanitised values `clean`.
+    fn modulation(
+        &self,
+        params: &RpfParams,
+        clean: &[f32],
+    ) -> Result<Option<Vec<[f32; 3]>>, FilterError> {
+        if !params.demodulate {
+            return Ok(None);
+        }
+        let a = match self.albedo {
+            Some(a) if a + 3 <= self.kinds.len() => 2 + self.random + a,
+            albedo => {
+                return Err(FilterError::Parameter {
+                    field: "albedo",
+                    value: format!("{albedo:?}"),
+                    requirement: format!(
+                        "three base colour features among the {} to demodulate by",
+                        self.kinds.len()
+                    ),
+                })
+            }
+        };
+        let channel = |v: f32| if v > MIN_ALBEDO { v } else { 1.0 };
+        Ok(Some(
+            clean
+                .chunks_exact(self.stride())
+                .map(|v| [channel(v[a]), channel(v[a + 1]), channel(v[a + 2])])
+                .collect(),
+        ))
     }
 
     /// The box-filtered image of the samples' colours (what the path tracer would output).
@@ -267,9 +313,14 @@ pub fn filter(
     let d = set.stride();
     let c0 = set.colour();
     let clean: Vec<f32> = set.data.iter().map(|&v| finite(v)).collect();
+    let modulation = set.modulation(params, &clean)?;
     let original: Vec<[f32; 3]> = clean
         .chunks_exact(d)
-        .map(|v| [v[c0], v[c0 + 1], v[c0 + 2]])
+        .enumerate()
+        .map(|(i, v)| {
+            let m = modulation.as_ref().map_or([1.0; 3], |m| m[i]);
+            [v[c0] / m[0], v[c0 + 1] / m[1], v[c0 + 2] / m[2]]
+        })
         .collect();
     let mut current = original.clone();
     let largest = *params.boxes.iter().max().expect("validated");
@@ -309,9 +360,10 @@ pub fn filter(
         (0..w * h)
             .map(|p| {
                 let mut sum = [0.0f32; 3];
-                for c in &current[p * spp..(p + 1) * spp] {
+                for i in p * spp..(p + 1) * spp {
+                    let m = modulation.as_ref().map_or([1.0; 3], |m| m[i]);
                     for k in 0..3 {
-                        sum[k] += c[k];
+                        sum[k] += current[i][k] * m[k];
                     }
                 }
                 sum.map(|x| x / spp as f32)
@@ -319,6 +371,9 @@ pub fn filter(
             .collect(),
     ))
 }
+
+/// Base colour channels at or below this are not divided by (the sky, black texels).
+const MIN_ALBEDO: f32 = 1e-3;
 
 /// `n log2 n` for every count a neighbourhood can reach.
 struct NLogN(Vec<f32>);

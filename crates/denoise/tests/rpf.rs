@@ -106,6 +106,63 @@ fn noise_from_a_random_parameter_is_averaged_away_on_a_flat_region() {
     assert!((mean - 0.5).abs() < 0.02, "mean {mean}");
 }
 
+/// A checkerboard of base colours 0.2 and 0.8.
+fn checker(x: usize, y: usize) -> f32 {
+    if (x + y).is_multiple_of(2) {
+        0.2
+    } else {
+        0.8
+    }
+}
+
+/// The [`checker`] base colour (the texture feature, index 3 of the features) times
+/// `light(r)` from the first random parameter.
+fn textured(size: usize, light: impl Fn(f32) -> f32) -> SampleSet {
+    let mut set = synthetic(size, 8, |x, y, r| [checker(x, y) * light(r); 3], checker);
+    set.albedo = Some(3);
+    set
+}
+
+#[test]
+fn demodulation_keeps_texture_detail_and_filters_the_light_under_it() {
+    let size = 16;
+    let demodulate = RpfParams {
+        demodulate: true,
+        ..small_boxes()
+    };
+    let t = |p: usize| checker(p % size, p / size);
+    // Constant light under the texture: divided by the base colour the image is constant, so
+    // multiplied back every pixel is its base colour times the light, exactly.
+    let set = textured(size, |_| 0.7);
+    let out = filter(&set, &demodulate, &NO, &|_| {}).unwrap().unwrap();
+    for (p, c) in out.iter().enumerate() {
+        assert!((c[0] - 0.7 * t(p)).abs() < 1e-5, "pixel {p}: {c:?}");
+    }
+    // Noisy light (0.1 to 0.9, from a random parameter): the light under each pixel is
+    // averaged, the texture kept.
+    let set = textured(size, |r| 0.1 + 0.8 * r);
+    let before = set.mean_image();
+    let out = filter(&set, &demodulate, &NO, &|_| {}).unwrap().unwrap();
+    let light = |img: &[[f32; 3]]| -> Vec<f32> {
+        (4..size - 4)
+            .flat_map(|y| (4..size - 4).map(move |x| y * size + x))
+            .map(|p| img[p][0] / t(p))
+            .collect()
+    };
+    let (vb, va) = (
+        variance(light(&before).into_iter()),
+        variance(light(&out).into_iter()),
+    );
+    assert!(va < vb / 10.0, "variance of the light {vb} -> {va}");
+    let mean = light(&out).iter().sum::<f32>() / light(&out).len() as f32;
+    assert!((mean - 0.5).abs() < 0.03, "mean light {mean}");
+    // Demodulating needs the base colour among the features.
+    let mut set = textured(size, |_| 0.7);
+    set.albedo = Some(4);
+    let e = filter(&set, &demodulate, &NO, &|_| {}).unwrap_err();
+    assert!(e.to_string().contains("albedo"), "{e}");
+}
+
 #[test]
 fn an_edge_the_features_see_is_not_blurred() {
     // Left half dark texture and colour, right half bright; plus noise from a random parameter.

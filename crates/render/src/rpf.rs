@@ -27,6 +27,9 @@ use crate::world::World;
 /// Random parameters per sample vector.
 pub const RANDOM: usize = 8;
 
+/// The index of the first hit's base colour among the features.
+const ALBEDO: usize = 12;
+
 /// The feature kinds of the vector: positions and normals of two vertices, a base colour.
 pub fn feature_kinds() -> Vec<FeatureKind> {
     use FeatureKind::{Other, Position};
@@ -54,6 +57,7 @@ pub fn trace(
         config.spp as usize,
     );
     let mut set = SampleSet::new(w, h, spp, RANDOM, feature_kinds())?;
+    set.albedo = Some(ALBEDO);
     let tracer = PathTracer {
         world,
         camera,
