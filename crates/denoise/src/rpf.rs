@@ -314,11 +314,14 @@ pub fn filter(
     let c0 = set.colour();
     let clean: Vec<f32> = set.data.iter().map(|&v| finite(v)).collect();
     let modulation = set.modulation(params, &clean)?;
+    // Sample `i`'s factor between its colour and what the passes filter (1 without
+    // demodulation).
+    let factor = |i: usize| modulation.as_ref().map_or([1.0; 3], |m| m[i]);
     let original: Vec<[f32; 3]> = clean
         .chunks_exact(d)
         .enumerate()
         .map(|(i, v)| {
-            let m = modulation.as_ref().map_or([1.0; 3], |m| m[i]);
+            let m = factor(i);
             [v[c0] / m[0], v[c0 + 1] / m[1], v[c0 + 2] / m[2]]
         })
         .collect();
@@ -360,10 +363,11 @@ pub fn filter(
         (0..w * h)
             .map(|p| {
                 let mut sum = [0.0f32; 3];
-                for i in p * spp..(p + 1) * spp {
-                    let m = modulation.as_ref().map_or([1.0; 3], |m| m[i]);
+                let own = p * spp..(p + 1) * spp;
+                for (i, c) in own.clone().zip(&current[own]) {
+                    let m = factor(i);
                     for k in 0..3 {
-                        sum[k] += current[i][k] * m[k];
+                        sum[k] += c[k] * m[k];
                     }
                 }
                 sum.map(|x| x / spp as f32)

@@ -200,11 +200,8 @@ enum LaneEntry {
     /// Not in the lanes: spot and directional lights, the environment, lights that cannot
     /// be selected.
     None,
-    Point {
-        position: Vec3,
-        intensity: Vec3,
-        inv_range: f32,
-    },
+    /// A point light: the same wherever it is seen from.
+    Point(LaneLight),
     /// An emissive triangle, with its emission when that has no texture.
     Triangle {
         normal: Vec3,
@@ -490,11 +487,11 @@ impl Lights {
                 position,
                 intensity,
                 inv_range,
-            }) => LaneEntry::Point {
+            }) => LaneEntry::Point(LaneLight::Point {
                 position,
                 intensity,
                 inv_range,
-            },
+            }),
             _ => LaneEntry::None,
         }
     }
@@ -599,15 +596,7 @@ impl Lights {
         let index = point.light as usize;
         match *self.lanes.get(index)? {
             LaneEntry::None => None,
-            LaneEntry::Point {
-                position,
-                intensity,
-                inv_range,
-            } => Some(LaneLight::Point {
-                position,
-                intensity,
-                inv_range,
-            }),
+            LaneEntry::Point(light) => Some(light),
             LaneEntry::Triangle {
                 normal,
                 two_sided,
