@@ -9,7 +9,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
 use pathlight_core::rng::Rng;
-use pathlight_denoise::{DataDriven, Features, FilterConfig, Method, Svgf, SvgfFrame};
+use pathlight_denoise::{DataDriven, Features, FilterConfig, Method, Svgf, SvgfFrame, SvgfParams};
 
 fn vec3(rng: &mut Rng, scale: f32) -> Vec3 {
     Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale
@@ -133,13 +133,24 @@ fn svgf(c: &mut Criterion) {
         let mut out = vec![Vec3::ZERO; n];
         let mut group = c.benchmark_group(format!("svgf {w}x{h}"));
         group.sample_size(20);
-        for (scalar, kernel) in [(false, 5), (true, 5), (false, 3)] {
+        for (scalar, kernel, split) in [
+            (false, 5, true),
+            (true, 5, true),
+            (false, 3, true),
+            (false, 3, false),
+        ] {
             let mut svgf = Svgf::new();
             svgf.set_scalar(scalar);
-            let name = match (scalar, kernel) {
-                (true, _) => "scalar",
-                (false, 5) => "vectorised",
-                _ => "vectorised 3x3",
+            let name = match (scalar, kernel, split) {
+                (true, _, _) => "scalar",
+                (false, 5, _) => "vectorised",
+                (false, _, true) => "vectorised 3x3",
+                _ => "vectorised 3x3 one signal",
+            };
+            let p = SvgfParams {
+                iterations: 5,
+                kernel,
+                split,
             };
             // The history brought to its full length when the benchmark runs (not for the
             // variants a filter leaves out: the scalar ones take seconds at 1280x720).
@@ -147,11 +158,11 @@ fn svgf(c: &mut Criterion) {
             group.bench_function(name, |b| {
                 if !warm {
                     for _ in 0..40 {
-                        svgf.filter(&frame, 5, kernel, &mut out).unwrap();
+                        svgf.filter(&frame, &p, &mut out).unwrap();
                     }
                     warm = true;
                 }
-                b.iter(|| svgf.filter(&frame, 5, kernel, &mut out).unwrap())
+                b.iter(|| svgf.filter(&frame, &p, &mut out).unwrap())
             });
         }
         group.finish();

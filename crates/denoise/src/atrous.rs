@@ -1,7 +1,8 @@
 //! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 16 centre pixels at a
-//! time (one AVX-512 register, or two AVX2 ones, with FMA, as the processor has them): the same
-//! weights, taps and order of sums as the scalar pass in `svgf.rs`, which stays as the reference
-//! (a test holds them together) and for passes too wide for the planes' padding.
+//! time in the lanes of [`crate::simd`] (one AVX-512 register, or two AVX2 ones, with FMA, as the
+//! processor has them), one or two signals: the same weights and taps as the scalar pass in
+//! `svgf.rs`, which stays as the reference (a test holds them together, for every kind of lanes)
+//! and for passes too wide for the planes' padding.
 //!
 //! The planes carry a border of `pad` pixels (twice the widest hole) whose normal is zero, so a
 //! tap that falls outside the image weighs exactly 0, as the scalar pass's bounds test gives;
@@ -17,10 +18,7 @@ use glam::Vec3;
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::exp::{exp_neg, MulAdd, Plain};
-
-const LANES: usize = 16;
-type Lanes = [f32; LANES];
+use crate::simd::{dispatch, exp_neg, F32x16, Isa, Kernel, LANES};
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
@@ -45,11 +43,21 @@ const SUM: usize = 5;
 /// 1 where the pixel passes through (the sky and light sources), else 0.
 const THROUGH: usize = 6;
 const STATIC: usize = 7;
-// Dynamic planes (per pass): direct rgb, indirect rgb, the two variances, the two luminances.
+// Dynamic planes (per pass) of `S` signals (direct and indirect light, or their sum): each
+// signal's rgb, then each one's variance, then each one's luminance.
 const L: usize = 0;
-const V: usize = 6;
-const LUM: usize = 8;
-const DYNAMIC: usize = 10;
+/// The first variance plane of `S` signals.
+const fn v(signals: usize) -> usize {
+    3 * signals
+}
+/// The first luminance plane of `S` signals.
+const fn lum(signals: usize) -> usize {
+    4 * signals
+}
+/// The dynamic planes of `S` signals.
+const fn dynamic(signals: usize) -> usize {
+    5 * signals
+}
 
 /// The variance blur's 3x3 taps (dx, dy, weight), row by row (the order both passes sum in).
 pub const BLUR: [(i64, i64, f32); 9] = [
@@ -136,6 +144,10 @@ impl Grid {
 pub struct Planes {
     fixed: Grid,
     moving: Grid,
+    /// Signals filtered (1 or 2): the first `signals` of [`Inputs::light`].
+    signals: usize,
+    /// The widest lanes the passes use (narrower ones for tests).
+    pub isa: Isa,
     statics: Vec<f32>,
     current: Vec<f32>,
     next: Vec<f32>,
@@ -156,13 +168,14 @@ pub struct Inputs<'a> {
 
 impl Planes {
     /// Lays out this frame's inputs for passes with holes up to `max_step` pixels (at most
-    /// [`MAX_PAD`] / 2).
-    pub fn load(&mut self, f: &Inputs, max_step: usize) {
+    /// [`MAX_PAD`] / 2) over the first `signals` (1 or 2) signals of the light.
+    pub fn load(&mut self, f: &Inputs, max_step: usize, signals: usize) {
         let (w, h) = (f.width, f.height);
         let pad = 2 * max_step;
-        debug_assert!(pad <= MAX_PAD);
+        debug_assert!(pad <= MAX_PAD && (1..=2).contains(&signals));
+        self.signals = signals;
         self.fixed = Grid::new(w, h, pad, STATIC);
-        self.moving = Grid::new(w, h, pad, DYNAMIC);
+        self.moving = Grid::new(w, h, pad, dynamic(signals));
         let (fixed, moving) = (self.fixed, self.moving);
         self.statics.clear();
         self.statics.resize(fixed.len(), 0.0);
@@ -194,12 +207,12 @@ impl Planes {
             for x in 0..w {
                 let i = y as usize * w + x;
                 let at = |p: usize| p * moving.pitch + pad + x;
-                for s in 0..2 {
+                for s in 0..signals {
                     for k in 0..3 {
                         row[at(L + 3 * s + k)] = f.light[i][s][k];
                     }
-                    row[at(V + s)] = f.variance[i][s];
-                    row[at(LUM + s)] = luminance(f.light[i][s]);
+                    row[at(v(signals) + s)] = f.variance[i][s];
+                    row[at(lum(signals) + s)] = luminance(f.light[i][s]);
                 }
             }
         });
@@ -212,20 +225,23 @@ impl Planes {
     }
 
     /// `f(i, light)` of every pixel `i` (row-major) and its current light, into `out` (one
-    /// entry a pixel).
+    /// entry a pixel; the second signal zero when one is filtered).
     pub fn map_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, [Vec3; 2]) -> T + Sync) {
         let g = self.moving;
+        let signals = self.signals;
         out.par_chunks_mut(g.width)
             .enumerate()
             .for_each(|(y, row)| {
                 let at = |p: usize| &self.current[g.at(0, y as i64, p)..][..g.width];
-                let planes: [&[f32]; 6] = std::array::from_fn(|p| at(L + p));
+                let planes: [&[f32]; 6] = std::array::from_fn(|p| at(L + p.min(3 * signals - 1)));
                 for (x, o) in row.iter_mut().enumerate() {
                     let c = |p: usize| planes[p][x];
-                    *o = f(
-                        y * g.width + x,
-                        [Vec3::new(c(0), c(1), c(2)), Vec3::new(c(3), c(4), c(5))],
-                    );
+                    let second = if signals == 2 {
+                        Vec3::new(c(3), c(4), c(5))
+                    } else {
+                        Vec3::ZERO
+                    };
+                    *o = f(y * g.width + x, [Vec3::new(c(0), c(1), c(2)), second]);
                 }
             });
     }
@@ -251,6 +267,8 @@ impl Planes {
             step: step as i64,
             sigma_z,
             wide: kernel != 3,
+            signals: self.signals,
+            isa: self.isa,
         };
         g.for_rows_by(&mut self.next, step, |y, row| pass.row(y, row));
         std::mem::swap(&mut self.current, &mut self.next);
@@ -267,180 +285,180 @@ struct Pass<'a> {
     sigma_z: f32,
     /// The 5x5 kernel (else 3x3).
     wide: bool,
+    signals: usize,
+    /// The widest lanes to use.
+    isa: Isa,
 }
 
-/// The weighted sums of [`LANES`] centre pixels.
-#[derive(Default)]
-struct Sums {
-    w: [Lanes; 2],
-    light: [Lanes; 6],
-    var: [Lanes; 2],
+/// The weighted sums of [`LANES`] centre pixels for `S` signals.
+struct Sums<V, const S: usize> {
+    w: [V; S],
+    light: [[V; 3]; S],
+    var: [V; S],
+}
+
+/// One output row of a pass, run with lanes `V` ([`crate::simd::dispatch`]).
+struct Row<'p, 'a> {
+    pass: &'p Pass<'a>,
+    y: i64,
+    row: &'p mut [f32],
+}
+
+impl Kernel<()> for Row<'_, '_> {
+    #[inline(always)]
+    fn run<V: F32x16>(self) {
+        let p = self.pass;
+        match (p.wide, p.signals) {
+            (true, 2) => p.row_lanes::<V, 2, 2>(self.y, self.row),
+            (false, 2) => p.row_lanes::<V, 1, 2>(self.y, self.row),
+            (true, _) => p.row_lanes::<V, 2, 1>(self.y, self.row),
+            (false, _) => p.row_lanes::<V, 1, 1>(self.y, self.row),
+        }
+    }
 }
 
 impl Pass<'_> {
     /// Row `y` of the output into `row` (its `[plane][pitch]` block).
     fn row(&self, y: i64, row: &mut [f32]) {
+        dispatch(self.isa, Row { pass: self, y, row });
+    }
+
+    #[inline(always)]
+    fn row_lanes<V: F32x16, const R: i64, const S: usize>(&self, y: i64, row: &mut [f32]) {
         for x0 in (0..self.moving.width).step_by(LANES) {
-            self.group(x0 as i64, y, row);
+            self.group::<V, R, S>(x0 as i64, y, row);
         }
     }
 
-    /// The [`LANES`] pixels from (x0, y) on, filtered into `row`.
-    fn group(&self, x0: i64, y: i64, row: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("fma") {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the processor has AVX-512 and FMA (checked just above).
-                return unsafe {
-                    if self.wide {
-                        self.group_avx512::<2>(x0, y, row)
-                    } else {
-                        self.group_avx512::<1>(x0, y, row)
-                    }
-                };
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor has AVX2 and FMA (checked just above).
-                return unsafe {
-                    if self.wide {
-                        self.group_avx2::<2>(x0, y, row)
-                    } else {
-                        self.group_avx2::<1>(x0, y, row)
-                    }
-                };
-            }
-        }
-        if self.wide {
-            self.group_lanes::<Plain, 2>(x0, y, row)
-        } else {
-            self.group_lanes::<Plain, 1>(x0, y, row)
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn group_avx2<const R: i64>(&self, x0: i64, y: i64, row: &mut [f32]) {
-        self.group_lanes::<crate::exp::Fused, R>(x0, y, row)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,fma")]
-    fn group_avx512<const R: i64>(&self, x0: i64, y: i64, row: &mut [f32]) {
-        self.group_lanes::<crate::exp::Fused, R>(x0, y, row)
-    }
-
-    /// The [`LANES`] values of `buffer` from `at` on, without a bounds check: a pass reads its taps
-    /// 14 times, and the checks (two per read) were a sixth of its instructions.
+    /// The [`LANES`] values of `buffer` from `at` on, without a bounds check: a pass reads its
+    /// taps 14 times, and the checks (two per read) were a sixth of its instructions.
     ///
     /// # Safety
     /// `at + LANES <= buffer.len()`. [`Planes::pass`] asserts that the holes fit the
     /// padding, so every index [`Grid::at`] gives for a tap of a centre group (x in
-    /// `0..width` by 8, y in `0..height`) is inside its plane's padded row.
+    /// `0..width` by 16, y in `0..height`) is inside its plane's padded row.
     #[inline(always)]
-    unsafe fn lanes(buffer: &[f32], at: usize) -> Lanes {
+    unsafe fn lanes<V: F32x16>(buffer: &[f32], at: usize) -> V {
         debug_assert!(at + LANES <= buffer.len());
-        // SAFETY: the caller's contract; `[f32; LANES]` has no alignment beyond f32's, and the
-        // read is unaligned anyway.
-        unsafe { std::ptr::read_unaligned(buffer.as_ptr().add(at).cast::<Lanes>()) }
+        // SAFETY: the caller's contract.
+        unsafe { V::load(buffer.as_ptr().add(at)) }
+    }
+
+    /// Plane `p` of the statics at the 16 pixels from (x, y) on.
+    #[inline(always)]
+    fn st<V: F32x16>(&self, p: usize, x: i64, y: i64) -> V {
+        // SAFETY: the taps lie within the padding (asserted by `Planes::pass`), the centre
+        // group within the image.
+        unsafe { Self::lanes(self.statics, self.fixed.at(x, y, p)) }
+    }
+
+    /// Plane `p` of the current light, variance and luminance at the 16 pixels from (x, y) on.
+    #[inline(always)]
+    fn dy<V: F32x16>(&self, p: usize, x: i64, y: i64) -> V {
+        // SAFETY: as in `st`.
+        unsafe { Self::lanes(self.current, self.moving.at(x, y, p)) }
     }
 
     /// The [`LANES`] pixels from (x0, y) on filtered by a kernel of radius `R` (1: 3x3, 2: 5x5)
-    /// into `row`: the weighted means, the pixels that pass through kept as they are, and the
-    /// luminances of the result.
+    /// over `S` signals into `row`: the weighted means, the pixels that pass through kept as
+    /// they are, and the luminances of the result. (No closures here: see `simd::exp_neg`.)
     #[inline(always)]
-    fn group_lanes<M: MulAdd, const R: i64>(&self, x0: i64, y: i64, row: &mut [f32]) {
-        let s = self.sums::<M, R>(x0, y);
+    fn group<V: F32x16, const R: i64, const S: usize>(&self, x0: i64, y: i64, row: &mut [f32]) {
+        let s = self.sums::<V, R, S>(x0, y);
         let g = self.moving;
-        // SAFETY: the centre group lies within the image.
-        let through = unsafe { Self::lanes(self.statics, self.fixed.at(x0, y, THROUGH)) };
-        let keep = |p: usize, value: Lanes| -> Lanes {
-            // SAFETY: as above.
-            let current = unsafe { Self::lanes(self.current, g.at(x0, y, p)) };
-            std::array::from_fn(|j| {
-                if through[j] != 0.0 {
-                    current[j]
-                } else {
-                    value[j]
-                }
-            })
-        };
+        let (v, lum) = (v(S), lum(S));
+        let through = self.st::<V>(THROUGH, x0, y).ne(V::splat(0.0));
         let n = LANES.min(g.width - x0 as usize);
-        let mut put = |p: usize, value: &Lanes| {
-            let at = p * g.pitch + g.pad + x0 as usize;
-            row[at..at + n].copy_from_slice(&value[..n]);
-        };
-        for sig in 0..2 {
-            let sw = s.w[sig];
-            let c: [Lanes; 3] = std::array::from_fn(|k| {
-                let light = &s.light[3 * sig + k];
-                keep(L + 3 * sig + k, std::array::from_fn(|j| light[j] / sw[j]))
-            });
-            for (k, c) in c.iter().enumerate() {
-                put(L + 3 * sig + k, c);
+        let [r, gr, b] = [
+            V::splat(LUMINANCE[0]),
+            V::splat(LUMINANCE[1]),
+            V::splat(LUMINANCE[2]),
+        ];
+        for sig in 0..S {
+            let mut c = [V::splat(0.0); 3];
+            let mut out = [V::splat(0.0); 5];
+            for k in 0..3 {
+                let p = L + 3 * sig + k;
+                c[k] = V::select(through, self.dy(p, x0, y), s.light[sig][k] / s.w[sig]);
+                out[k] = c[k];
             }
-            let var = &s.var[sig];
-            put(
-                V + sig,
-                &keep(V + sig, std::array::from_fn(|j| var[j] / (sw[j] * sw[j]))),
-            );
-            put(
-                LUM + sig,
-                &std::array::from_fn(|j| luminance(Vec3::new(c[0][j], c[1][j], c[2][j]))),
-            );
+            let var = s.var[sig] / (s.w[sig] * s.w[sig]);
+            out[3] = V::select(through, self.dy(v + sig, x0, y), var);
+            out[4] = c[0] * r + c[1] * gr + c[2] * b;
+            let l = L + 3 * sig;
+            for (value, p) in out.into_iter().zip([l, l + 1, l + 2, v + sig, lum + sig]) {
+                let at = p * g.pitch + g.pad + x0 as usize;
+                if n == LANES {
+                    assert!(at + LANES <= row.len());
+                    // SAFETY: checked just above.
+                    unsafe { value.store(row.as_mut_ptr().add(at)) }
+                } else {
+                    // The image's last group: the lanes past its width are left alone (the
+                    // padding stays zero).
+                    row[at..at + n].copy_from_slice(&value.to_array()[..n]);
+                }
+            }
         }
     }
 
-    /// The weighted sums of a kernel of radius `R` over the [`LANES`] pixels from (x0, y) on.
+    /// The weighted sums of a kernel of radius `R` over the [`LANES`] pixels from (x0, y) on,
+    /// for `S` signals.
     #[inline(always)]
-    fn sums<M: MulAdd, const R: i64>(&self, x0: i64, y: i64) -> Sums {
+    fn sums<V: F32x16, const R: i64, const S: usize>(&self, x0: i64, y: i64) -> Sums<V, S> {
         let h = spline(2 * R as u32 + 1);
-        let (fg, mg) = (self.fixed, self.moving);
-        // SAFETY (both): the taps lie within the padding (asserted by `Planes::pass`), the
-        // centre group within the image.
-        let st = |p: usize, x: i64, y: i64| unsafe { Self::lanes(self.statics, fg.at(x, y, p)) };
-        let dy = |p: usize, x: i64, y: i64| unsafe { Self::lanes(self.current, mg.at(x, y, p)) };
-        let zc = st(Z, x0, y);
-        let gz = st(G, x0, y);
-        let nc = [st(NX, x0, y), st(NX + 1, x0, y), st(NX + 2, x0, y)];
-        let lc = [dy(LUM, x0, y), dy(LUM + 1, x0, y)];
-        // The luminance test's `1 / (sigma_l sqrt(g(var)) + 1e-4)`, g the variance's 3x3
+        let (v, lum) = (v(S), lum(S));
+        let splat = V::splat;
+        let zc: V = self.st(Z, x0, y);
+        let gz: V = self.st(G, x0, y);
+        let nc: [V; 3] = [
+            self.st(NX, x0, y),
+            self.st(NX + 1, x0, y),
+            self.st(NX + 2, x0, y),
+        ];
+        // The centre tap: the kernel's weight whatever the tests say.
+        let kc = splat(h[0] * h[0]);
+        let mut s = Sums {
+            w: [kc; S],
+            var: [kc; S],
+            light: [[kc; 3]; S],
+        };
+        let mut lc = [kc; S];
+        // The luminance test's `-1 / (sigma_l sqrt(g(var)) + 1e-4)`, g the variance's 3x3
         // Gaussian over the pixels inside the image (the scalar pass's: the border's zeros add
         // nothing, and plane `SUM` holds the same normalisation, summed in the same order).
-        let sum = st(SUM, x0, y);
-        let inv: [Lanes; 2] = [V, V + 1].map(|p| {
-            let mut g = [0.0f32; LANES];
-            for &(dx, dy_, k) in &BLUR {
-                let v = dy(p, x0 + dx, y + dy_);
-                for j in 0..LANES {
-                    g[j] += v[j] * k;
-                }
-            }
-            std::array::from_fn(|j| 1.0 / (self.sigma_l * (g[j] / sum[j]).sqrt() + 1e-4))
-        });
-        // The centre tap: the kernel's weight whatever the tests say.
-        let kc = h[0] * h[0];
-        let mut s = Sums::default();
-        for sig in 0..2 {
-            s.w[sig] = [kc; LANES];
-            s.var[sig] = dy(V + sig, x0, y).map(|v| v * kc * kc);
+        let mut minus_inv = [kc; S];
+        let sum: V = self.st(SUM, x0, y);
+        for sig in 0..S {
+            lc[sig] = self.dy(lum + sig, x0, y);
+            s.var[sig] = self.dy::<V>(v + sig, x0, y) * kc * kc;
             for k in 0..3 {
-                s.light[3 * sig + k] = dy(L + 3 * sig + k, x0, y).map(|l| l * kc);
+                s.light[sig][k] = self.dy::<V>(L + 3 * sig + k, x0, y) * kc;
             }
+            let mut g = splat(0.0);
+            for &(dx, dy, k) in &BLUR {
+                g = self.dy::<V>(v + sig, x0 + dx, y + dy).mul_add(splat(k), g);
+            }
+            minus_inv[sig] = splat(-1.0) / (splat(self.sigma_l) * (g / sum).sqrt() + splat(1e-4));
         }
         let step = self.step;
-        // The depth test's `1 / (sigma_z |grad z| |p - q| + 1e-4 z)` for the distances the
+        // The depth test's `-1 / (sigma_z |grad z| |p - q| + 1e-4 z)` for the distances the
         // taps have (|k|^2 = 1, 2, and with the 5x5 kernel 4, 5, 8).
-        let mut rz = [[0.0f32; LANES]; 5];
-        for (d, rz) in rz.iter_mut().enumerate().take(if R == 1 { 2 } else { 5 }) {
-            let distance = ([1.0f32, 2.0, 4.0, 5.0, 8.0][d]).sqrt() * step as f32;
-            *rz = std::array::from_fn(|j| 1.0 / (self.sigma_z * gz[j] * distance + 1e-4 * zc[j]));
+        let mut minus_rz = [kc; 5];
+        for (d, rz) in minus_rz
+            .iter_mut()
+            .enumerate()
+            .take(if R == 1 { 2 } else { 5 })
+        {
+            let distance = [1.0f32, 2.0, 4.0, 5.0, 8.0][d].sqrt() * step as f32;
+            *rz = splat(-1.0) / (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc);
         }
+        let (floor, zero) = (splat(-30.0), splat(0.0));
         for ky in -R..=R {
             for kx in -R..=R {
                 if kx == 0 && ky == 0 {
                     continue;
                 }
-                let rz = &rz[match kx * kx + ky * ky {
+                let minus_rz = minus_rz[match kx * kx + ky * ky {
                     1 => 0,
                     2 => 1,
                     4 => 2,
@@ -448,34 +466,42 @@ impl Pass<'_> {
                     _ => 4,
                 }];
                 let (qx, qy) = (x0 + kx * step, y + ky * step);
-                let kernel = h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize];
-                let zq = st(Z, qx, qy);
-                let nq = [st(NX, qx, qy), st(NX + 1, qx, qy), st(NX + 2, qx, qy)];
-                let lq = [dy(LUM, qx, qy), dy(LUM + 1, qx, qy)];
-                let light: [Lanes; 6] = std::array::from_fn(|p| dy(L + p, qx, qy));
-                let var = [dy(V, qx, qy), dy(V + 1, qx, qy)];
-                for j in 0..LANES {
-                    let wz = -(zq[j] - zc[j]).abs() * rz[j];
-                    let cos = nq[0][j] * nc[0][j] + nq[1][j] * nc[1][j] + nq[2][j] * nc[2][j];
-                    let wn = normal_weight(cos);
-                    for sig in 0..2 {
-                        let e = wz + -(lq[sig][j] - lc[sig][j]).abs() * inv[sig][j];
-                        let wq = if wn > 0.0 && e > -30.0 {
-                            kernel * wn * exp_neg::<M>(e)
-                        } else {
-                            0.0
-                        };
-                        s.w[sig][j] += wq;
-                        for k in 0..3 {
-                            s.light[3 * sig + k][j] += light[3 * sig + k][j] * wq;
-                        }
-                        s.var[sig][j] += var[sig][j] * wq * wq;
+                let kernel = splat(h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize]);
+                let wz = (self.st::<V>(Z, qx, qy) - zc).abs() * minus_rz;
+                let cos = self.st::<V>(NX, qx, qy) * nc[0];
+                let cos = self.st::<V>(NX + 1, qx, qy).mul_add(nc[1], cos);
+                let cos = self.st::<V>(NX + 2, qx, qy).mul_add(nc[2], cos);
+                let wn = normal_weight_lanes(cos);
+                let kw = kernel * wn;
+                let some = wn.gt(zero);
+                for sig in 0..S {
+                    let lq: V = self.dy(lum + sig, qx, qy);
+                    let e = (lq - lc[sig]).abs().mul_add(minus_inv[sig], wz);
+                    let wq = V::select(V::and(some, e.gt(floor)), kw * exp_neg(e), zero);
+                    s.w[sig] = s.w[sig] + wq;
+                    for k in 0..3 {
+                        let l: V = self.dy(L + 3 * sig + k, qx, qy);
+                        s.light[sig][k] = l.mul_add(wq, s.light[sig][k]);
                     }
+                    s.var[sig] = (self.dy::<V>(v + sig, qx, qy) * wq).mul_add(wq, s.var[sig]);
                 }
             }
         }
         s
     }
+}
+
+/// The weights of [`luminance`].
+const LUMINANCE: [f32; 3] = [0.2126, 0.7152, 0.0722];
+
+/// [`normal_weight`] in lanes.
+#[inline(always)]
+fn normal_weight_lanes<V: F32x16>(cos: V) -> V {
+    let mut w = V::select(cos.ge(V::splat(0.6)), cos, V::splat(0.0));
+    for _ in 0..7 {
+        w = w * w;
+    }
+    w
 }
 
 /// `max(0, cos)^128` by repeated squaring; 0 below a cosine of 0.6 (and for NaN).

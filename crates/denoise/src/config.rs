@@ -91,6 +91,10 @@ pub struct FilterConfig {
     /// SVGF: the a-trous kernel's width, 5 (the paper's B3 spline) or 3 (the linear
     /// B-spline: a third of the taps; not in the paper).
     pub atrous_kernel: u32,
+    /// SVGF: integrate and filter direct and indirect light apart (the paper's two signals);
+    /// false filters their sum as one signal (not in the paper: about 40% fewer operations
+    /// per tap).
+    pub svgf_split: bool,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
     /// errors by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
@@ -132,6 +136,7 @@ impl Default for FilterConfig {
             holes: false,
             atrous_iterations: 5,
             atrous_kernel: 5,
+            svgf_split: true,
             sigma_direct: 4.0,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -203,6 +208,15 @@ impl FilterConfig {
             return bad("frame.filter.variance_scale", s, "finite and at least 0");
         }
         self.rpf_params(0).validate()
+    }
+
+    /// SVGF's parameters.
+    pub fn svgf_params(&self) -> crate::SvgfParams {
+        crate::SvgfParams {
+            iterations: self.atrous_iterations,
+            kernel: self.atrous_kernel,
+            split: self.svgf_split,
+        }
     }
 
     /// RPF's parameters, with the seed of its random draws.

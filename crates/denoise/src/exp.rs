@@ -6,7 +6,11 @@
 const LOG2_E: f32 = std::f32::consts::LOG2_E;
 /// Inputs below this give `e^-87` (about 1.6e-38): a weight that vanishes beside any weight
 /// of order 1 in a sum, and keeps the exponent bits in range.
-const LOWEST: f32 = -87.0;
+pub(crate) const LOWEST: f32 = -87.0;
+/// `2^f` on `[0, 1)`: a degree-4 polynomial (highest power first), 1 at 0, fitted for the
+/// least largest relative error (3e-6; Lawson's iteration on 20,001 points).
+pub(crate) const EXP2_POLY: [f32; 5] =
+    [0.013_426_607, 0.052_242_6, 0.241_280_15, 0.693_044_84, 1.0];
 
 /// `a * b + c`: rounded twice ([`Plain`]), or once with a fused multiply-add ([`Fused`], for
 /// code compiled with the `fma` target feature, where it is one instruction).
@@ -40,11 +44,9 @@ pub fn exp_neg<M: MulAdd>(x: f32) -> f32 {
     let t = x * LOG2_E;
     let i = t.floor();
     let f = t - i;
-    // 2^f on [0, 1): a degree-4 polynomial, 1 at 0, fitted for the least largest relative
-    // error (3e-6; Lawson's iteration on 20,001 points).
-    let p = [0.052_242_6, 0.241_280_15, 0.693_044_84, 1.0]
-        .into_iter()
-        .fold(0.013_426_607, |acc, c| M::mul_add(acc, f, c));
+    let p = EXP2_POLY[1..]
+        .iter()
+        .fold(EXP2_POLY[0], |acc, &c| M::mul_add(acc, f, c));
     // 2^i from the exponent bits: i + 127 is a whole number in 1..=127 (x >= LOWEST), so
     // adding 2^23 puts it in the float's low mantissa bits, which the shift moves into the
     // exponent (the other bits shift out). No float-to-integer conversion: it vectorises.

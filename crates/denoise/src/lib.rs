@@ -16,12 +16,13 @@ pub mod data_driven;
 mod exp;
 pub mod features;
 pub mod rpf;
+mod simd;
 pub mod svgf;
 
 pub use config::{ColourUnits, DepthUnits, FilterConfig, Method};
 pub use data_driven::DataDriven;
 pub use features::Features;
-pub use svgf::{Svgf, SvgfFrame};
+pub use svgf::{Svgf, SvgfFrame, SvgfParams};
 
 /// What a filter refuses, naming the parameter or buffer at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

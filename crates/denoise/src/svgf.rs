@@ -18,7 +18,9 @@
 //! ```
 //!
 //! Direct and indirect light are integrated and filtered apart (two signals, each with its
-//! luminance moments). Choices the paper leaves open or that differ, written down:
+//! luminance moments), as in the paper; with [`SvgfParams::split`] off, their sum is integrated
+//! and filtered as one signal (not in the paper: a tap's two luminance tests, exponentials and
+//! sums become one). Choices the paper leaves open or that differ, written down:
 //! - Edge-stopping: luminance `exp(-|l_p - l_q| / (sigma_l sqrt(g(var_p)) + eps))` with g a 3x3
 //!   Gaussian of the variance, sigma_l 4; depth `exp(-|z_p - z_q| / (sigma_z |grad z_p| |p - q|
 //!   + eps))` with the depth gradient from central differences, sigma_z 1; normal
@@ -62,11 +64,35 @@ pub struct SvgfFrame<'a> {
     pub emitter: &'a [bool],
 }
 
+/// The filter's parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SvgfParams {
+    /// A-trous passes.
+    pub iterations: u32,
+    /// The a-trous kernel's width: 5 (the paper's B3 spline) or 3.
+    pub kernel: u32,
+    /// Direct and indirect light integrated and filtered apart (the paper); else their sum as
+    /// one signal.
+    pub split: bool,
+}
+
+impl Default for SvgfParams {
+    fn default() -> Self {
+        Self {
+            iterations: 5,
+            kernel: 5,
+            split: true,
+        }
+    }
+}
+
 /// The filter's history and scratch buffers (kept across frames).
 #[derive(Default)]
 pub struct Svgf {
     width: usize,
     height: usize,
+    /// The history holds direct and indirect light apart (else their sum in the first).
+    split: bool,
     /// Last frame's integrated (after the first a-trous pass) demodulated light.
     history: Vec<[Vec3; 2]>,
     /// Last frame's moments (first and second of luminance, direct and indirect).
@@ -109,20 +135,34 @@ impl Svgf {
         self.scalar = scalar;
     }
 
+    /// Caps the vectorised passes' lanes at AVX2 (`avx2`) or plain arrays (`portable`)
+    /// instead of the widest the processor has (for tests on processors with AVX-512).
+    #[doc(hidden)]
+    pub fn set_lanes(&mut self, lanes: &str) {
+        self.planes.isa = match lanes {
+            "portable" => crate::simd::Isa::Portable,
+            "avx2" => crate::simd::Isa::Avx2,
+            _ => crate::simd::Isa::Avx512,
+        };
+    }
+
     /// Forgets the history (a cut: the next frame starts afresh).
     pub fn reset(&mut self) {
         self.length.clear();
     }
 
-    /// Filters `frame` with `iterations` a-trous passes of a kernel `kernel` pixels wide (5,
-    /// the paper's, or 3) into `out`, using and updating the history.
+    /// Filters `frame` into `out` with the passes `p` gives, using and updating the history.
     pub fn filter(
         &mut self,
         f: &SvgfFrame,
-        iterations: u32,
-        kernel: u32,
+        p: &SvgfParams,
         out: &mut [Vec3],
     ) -> Result<(), FilterError> {
+        let SvgfParams {
+            iterations,
+            kernel,
+            split,
+        } = *p;
         let n = f.width * f.height;
         for (name, len) in [
             ("direct", f.direct.len()),
@@ -146,9 +186,12 @@ impl Svgf {
         if n == 0 {
             return Ok(());
         }
-        if (self.width, self.height) != (f.width, f.height) || self.length.len() != n {
+        if (self.width, self.height, self.split) != (f.width, f.height, split)
+            || self.length.len() != n
+        {
             self.width = f.width;
             self.height = f.height;
+            self.split = split;
             self.history = vec![[Vec3::ZERO; 2]; n];
             self.moments = vec![[0.0; 4]; n];
             self.length = vec![0.0; n];
@@ -173,6 +216,7 @@ impl Svgf {
                     variance: &self.variance,
                 },
                 pad / 2,
+                signals(split),
             );
             for i in 0..iterations {
                 self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
@@ -184,7 +228,7 @@ impl Svgf {
                 .map_light(out, |i, [d, n]| remodulate(f, i, d + n));
         } else {
             for i in 0..iterations {
-                self.atrous(f, kernel, 1 << i);
+                self.atrous(f, kernel, 1 << i, signals(split));
                 std::mem::swap(&mut self.light, &mut self.next_light);
                 std::mem::swap(&mut self.variance, &mut self.next_variance);
                 if i == 0 {
@@ -211,6 +255,7 @@ impl Svgf {
     /// at the reprojected position.
     fn temporal(&mut self, f: &SvgfFrame) {
         let n = f.width * f.height;
+        let split = self.split;
         self.light.resize(n, [Vec3::ZERO; 2]);
         self.new_moments.resize(n, [0.0; 4]);
         self.new_length.resize(n, 0.0);
@@ -227,7 +272,11 @@ impl Svgf {
             .enumerate()
             .for_each(|(i, (light, m, len))| {
                 let a = demodulator(f.albedo[i]);
-                let current = [f.direct[i] / a, f.indirect[i] / a];
+                let current = if split {
+                    [f.direct[i] / a, f.indirect[i] / a]
+                } else {
+                    [(f.direct[i] + f.indirect[i]) / a, Vec3::ZERO]
+                };
                 let lum = [luminance(current[0]), luminance(current[1])];
                 let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
                 let finite = current.iter().all(|c| c.is_finite());
@@ -350,9 +399,9 @@ impl Svgf {
         });
     }
 
-    /// One a-trous pass of a kernel `kernel` pixels wide with holes of `step` pixels, into
-    /// `next_light` and `next_variance`.
-    fn atrous(&mut self, f: &SvgfFrame, kernel: u32, step: i64) {
+    /// One a-trous pass of a kernel `kernel` pixels wide with holes of `step` pixels over the
+    /// first `signals` signals, into `next_light` and `next_variance`.
+    fn atrous(&mut self, f: &SvgfFrame, kernel: u32, step: i64, signals: usize) {
         let weights = spline(kernel);
         let r = i64::from(kernel / 2);
         let n = f.width * f.height;
@@ -414,7 +463,7 @@ impl Svgf {
                         let wz = -(f.depth[q] - f.depth[i]).abs()
                             / (SIGMA_Z * gradient[i] * distance + 1e-4 * f.depth[i]);
                         let wn = normal_weight(f.normal[q].dot(f.normal[i]));
-                        for s in 0..2 {
+                        for s in 0..signals {
                             let wl = -(lum[q][s] - lum_p[s]).abs() * inv_sigma[s];
                             let e = wz + wl;
                             let wq = if q == i {
@@ -432,10 +481,12 @@ impl Svgf {
                         }
                     }
                 }
-                for s in 0..2 {
+                for s in 0..signals {
                     out_l[s] = acc[s] / sum_w[s];
                     out_v[s] = acc_v[s] / (sum_w[s] * sum_w[s]);
                 }
+                out_l[signals..].copy_from_slice(&light[i][signals..]);
+                out_v[signals..].copy_from_slice(&variance[i][signals..]);
             });
     }
 }
@@ -447,6 +498,15 @@ fn remodulate(f: &SvgfFrame, i: usize, light: Vec3) -> Vec3 {
         f.direct[i] + f.indirect[i]
     } else {
         light * demodulator(f.albedo[i])
+    }
+}
+
+/// The number of signals the passes filter.
+fn signals(split: bool) -> usize {
+    if split {
+        2
+    } else {
+        1
     }
 }
 

@@ -392,6 +392,10 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             ui.radio_value(&mut f.atrous_kernel, 5, "5x5 (the paper's)");
             ui.radio_value(&mut f.atrous_kernel, 3, "3x3");
         });
+        ui.checkbox(
+            &mut f.svgf_split,
+            "direct and indirect light apart (the paper; off: their sum, one signal)",
+        );
     });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;

@@ -220,12 +220,8 @@ impl Filter {
             motion: &self.motion,
             emitter: &self.emitter,
         };
-        self.svgf.filter(
-            &frame,
-            config.atrous_iterations,
-            config.atrous_kernel,
-            &mut self.image,
-        )
+        self.svgf
+            .filter(&frame, &config.svgf_params(), &mut self.image)
     }
 
     fn run_data_driven(

@@ -1,0 +1,483 @@
+//! Sixteen `f32` lanes as one value: an AVX-512 register, two AVX2 ones, or a plain array
+//! (any other processor), behind one trait so that a filter's hot loop is written once.
+//!
+//! The filters first wrote their lanes as `[f32; 16]` arrays in loops the compiler vectorises;
+//! that works while a loop's body is small, but in SVGF's a-trous taps LLVM kept the sums in
+//! memory (a load, an add and a masked store per sum and tap). Values of these types are SSA
+//! values the compiler keeps in registers.
+//!
+//! # Safety
+//! The AVX-512 and AVX2 types call their instructions from methods compiled without the target
+//! features (trait methods cannot carry them): they are sound only where the processor has
+//! them. Every `Avx512` or `Avx2` value is made inside a function compiled for those features
+//! and called only after the run-time check ([`dispatch`]), and never leaves it.
+
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
+use std::ops::{Add, Div, Mul, Sub};
+
+/// The lanes of one value.
+pub const LANES: usize = 16;
+
+/// Sixteen `f32` lanes.
+pub trait F32x16:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
+{
+    /// Per-lane truth values.
+    type Mask: Copy;
+    /// # Safety
+    /// `p..p + 16` is readable.
+    unsafe fn load(p: *const f32) -> Self;
+    /// # Safety
+    /// `p..p + 16` is writable.
+    unsafe fn store(self, p: *mut f32);
+    fn splat(x: f32) -> Self;
+    fn to_array(self) -> [f32; LANES];
+    /// `self * b + c`, fused where the processor has FMA.
+    fn mul_add(self, b: Self, c: Self) -> Self;
+    fn abs(self) -> Self;
+    fn sqrt(self) -> Self;
+    fn floor(self) -> Self;
+    /// The lanes' bits shifted left by 23 (an integer operation on the float's bits: a whole
+    /// number in the low mantissa bits moves into the exponent).
+    fn shl_23(self) -> Self;
+    fn gt(self, o: Self) -> Self::Mask;
+    fn ge(self, o: Self) -> Self::Mask;
+    fn ne(self, o: Self) -> Self::Mask;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// `a` where `m`, else `b`.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+}
+
+/// The kinds of lanes, narrowest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+pub enum Isa {
+    /// Plain arrays (any processor).
+    Portable,
+    /// Two AVX2 registers with FMA.
+    Avx2,
+    /// One AVX-512 register with FMA.
+    #[default]
+    Avx512,
+}
+
+/// Runs `f` with the widest lanes this processor has, at most `cap` (narrower ones for tests;
+/// the check reads a cached flag).
+#[inline(always)]
+pub fn dispatch<R>(cap: Isa, f: impl Kernel<R>) -> R {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("fma") {
+        if cap >= Isa::Avx512 && std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the processor has AVX-512 and FMA (checked just above).
+            return unsafe { run_avx512(f) };
+        }
+        if cap >= Isa::Avx2 && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2 and FMA (checked just above).
+            return unsafe { run_avx2(f) };
+        }
+    }
+    f.run::<Portable>()
+}
+
+/// A computation over lanes of any width (a generic closure).
+pub trait Kernel<R> {
+    fn run<V: F32x16>(self) -> R;
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,fma")]
+unsafe fn run_avx512<R>(f: impl Kernel<R>) -> R {
+    f.run::<Avx512>()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn run_avx2<R>(f: impl Kernel<R>) -> R {
+    f.run::<Avx2>()
+}
+
+/// `e^x` for `x <= 0` in lanes: [`crate::exp::exp_neg`]'s method and polynomial.
+#[inline(always)]
+pub fn exp_neg<V: F32x16>(x: V) -> V {
+    use crate::exp::{EXP2_POLY, LOWEST};
+    let x = V::select(x.ge(V::splat(LOWEST)), x, V::splat(LOWEST));
+    let t = x * V::splat(std::f32::consts::LOG2_E);
+    let i = t.floor();
+    let f = t - i;
+    // No closures in the lanes' code: the compiler compiles a closure apart, without the
+    // processor features, and then may leave the instructions' wrappers as calls.
+    let mut p = V::splat(EXP2_POLY[0]);
+    for &c in &EXP2_POLY[1..] {
+        p = p.mul_add(f, V::splat(c));
+    }
+    (i + V::splat(127.0 + 8_388_608.0)).shl_23() * p
+}
+
+/// A plain array: any processor.
+#[derive(Clone, Copy)]
+pub struct Portable([f32; LANES]);
+
+impl Portable {
+    #[inline(always)]
+    fn map(self, f: impl Fn(f32) -> f32) -> Self {
+        Self(self.0.map(f))
+    }
+
+    #[inline(always)]
+    fn zip(self, o: Self, f: impl Fn(f32, f32) -> f32) -> Self {
+        Self(std::array::from_fn(|j| f(self.0[j], o.0[j])))
+    }
+}
+
+macro_rules! portable_op {
+    ($trait:ident, $method:ident, $op:tt) => {
+        impl $trait for Portable {
+            type Output = Self;
+            #[inline(always)]
+            fn $method(self, o: Self) -> Self {
+                self.zip(o, |a, b| a $op b)
+            }
+        }
+    };
+}
+portable_op!(Add, add, +);
+portable_op!(Sub, sub, -);
+portable_op!(Mul, mul, *);
+portable_op!(Div, div, /);
+
+impl F32x16 for Portable {
+    type Mask = [bool; LANES];
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        // SAFETY: the caller's contract; the read is unaligned.
+        Self(unsafe { std::ptr::read_unaligned(p.cast()) })
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f32) {
+        // SAFETY: the caller's contract; the write is unaligned.
+        unsafe { std::ptr::write_unaligned(p.cast(), self.0) }
+    }
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Self([x; LANES])
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f32; LANES] {
+        self.0
+    }
+    #[inline(always)]
+    fn mul_add(self, b: Self, c: Self) -> Self {
+        self * b + c
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        self.map(f32::abs)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        self.map(f32::sqrt)
+    }
+    #[inline(always)]
+    fn floor(self) -> Self {
+        self.map(f32::floor)
+    }
+    #[inline(always)]
+    fn shl_23(self) -> Self {
+        self.map(|x| f32::from_bits(x.to_bits() << 23))
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        std::array::from_fn(|j| self.0[j] > o.0[j])
+    }
+    #[inline(always)]
+    fn ge(self, o: Self) -> Self::Mask {
+        std::array::from_fn(|j| self.0[j] >= o.0[j])
+    }
+    #[inline(always)]
+    fn ne(self, o: Self) -> Self::Mask {
+        std::array::from_fn(|j| self.0[j] != o.0[j])
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        std::array::from_fn(|j| a[j] && b[j])
+    }
+    #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        Self(std::array::from_fn(|j| if m[j] { a.0[j] } else { b.0[j] }))
+    }
+}
+
+/// One AVX-512 register (see the module's safety note).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct Avx512(__m512);
+
+/// Runs an AVX-512 intrinsic.
+#[cfg(target_arch = "x86_64")]
+macro_rules! avx512 {
+    ($e:expr) => {
+        // SAFETY: `Avx512` values exist only in code run after the processor was found to
+        // have AVX-512 and FMA (the module's safety note).
+        unsafe { $e }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+macro_rules! avx512_op {
+    ($trait:ident, $method:ident, $intrinsic:ident) => {
+        impl $trait for Avx512 {
+            type Output = Self;
+            #[inline(always)]
+            fn $method(self, o: Self) -> Self {
+                Self(avx512!($intrinsic(self.0, o.0)))
+            }
+        }
+    };
+}
+#[cfg(target_arch = "x86_64")]
+avx512_op!(Add, add, _mm512_add_ps);
+#[cfg(target_arch = "x86_64")]
+avx512_op!(Sub, sub, _mm512_sub_ps);
+#[cfg(target_arch = "x86_64")]
+avx512_op!(Mul, mul, _mm512_mul_ps);
+#[cfg(target_arch = "x86_64")]
+avx512_op!(Div, div, _mm512_div_ps);
+
+#[cfg(target_arch = "x86_64")]
+impl F32x16 for Avx512 {
+    type Mask = __mmask16;
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        Self(avx512!(_mm512_loadu_ps(p)))
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f32) {
+        avx512!(_mm512_storeu_ps(p, self.0))
+    }
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Self(avx512!(_mm512_set1_ps(x)))
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f32; LANES] {
+        let mut a = [0.0; LANES];
+        avx512!(_mm512_storeu_ps(a.as_mut_ptr(), self.0));
+        a
+    }
+    #[inline(always)]
+    fn mul_add(self, b: Self, c: Self) -> Self {
+        Self(avx512!(_mm512_fmadd_ps(self.0, b.0, c.0)))
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Self(avx512!(_mm512_abs_ps(self.0)))
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Self(avx512!(_mm512_sqrt_ps(self.0)))
+    }
+    #[inline(always)]
+    fn floor(self) -> Self {
+        Self(avx512!(_mm512_roundscale_ps::<
+            { _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC },
+        >(self.0)))
+    }
+    #[inline(always)]
+    fn shl_23(self) -> Self {
+        Self(avx512!(_mm512_castsi512_ps(_mm512_slli_epi32::<23>(
+            _mm512_castps_si512(self.0)
+        ))))
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        avx512!(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(self.0, o.0))
+    }
+    #[inline(always)]
+    fn ge(self, o: Self) -> Self::Mask {
+        avx512!(_mm512_cmp_ps_mask::<_CMP_GE_OQ>(self.0, o.0))
+    }
+    #[inline(always)]
+    fn ne(self, o: Self) -> Self::Mask {
+        avx512!(_mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(self.0, o.0))
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        a & b
+    }
+    #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        Self(avx512!(_mm512_mask_blend_ps(m, b.0, a.0)))
+    }
+}
+
+/// Two AVX2 registers (see the module's safety note).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct Avx2([__m256; 2]);
+
+/// Runs an AVX2 intrinsic on each half.
+#[cfg(target_arch = "x86_64")]
+macro_rules! avx2 {
+    (|$h:ident| $e:expr) => {
+        // SAFETY: `Avx2` values exist only in code run after the processor was found to have
+        // AVX2 and FMA (the module's safety note).
+        [0, 1].map(|$h| unsafe { $e })
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+macro_rules! avx2_op {
+    ($trait:ident, $method:ident, $intrinsic:ident) => {
+        impl $trait for Avx2 {
+            type Output = Self;
+            #[inline(always)]
+            fn $method(self, o: Self) -> Self {
+                Self(avx2!(|h| $intrinsic(self.0[h], o.0[h])))
+            }
+        }
+    };
+}
+#[cfg(target_arch = "x86_64")]
+avx2_op!(Add, add, _mm256_add_ps);
+#[cfg(target_arch = "x86_64")]
+avx2_op!(Sub, sub, _mm256_sub_ps);
+#[cfg(target_arch = "x86_64")]
+avx2_op!(Mul, mul, _mm256_mul_ps);
+#[cfg(target_arch = "x86_64")]
+avx2_op!(Div, div, _mm256_div_ps);
+
+#[cfg(target_arch = "x86_64")]
+impl F32x16 for Avx2 {
+    type Mask = [__m256; 2];
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        Self(avx2!(|h| _mm256_loadu_ps(p.add(8 * h))))
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: *mut f32) {
+        for h in 0..2 {
+            // SAFETY: the caller's contract, and the module's safety note.
+            unsafe { _mm256_storeu_ps(p.add(8 * h), self.0[h]) }
+        }
+    }
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Self(avx2!(|_h| _mm256_set1_ps(x)))
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f32; LANES] {
+        let mut a = [0.0; LANES];
+        // SAFETY: `a` has 16 lanes.
+        unsafe { self.store(a.as_mut_ptr()) };
+        a
+    }
+    #[inline(always)]
+    fn mul_add(self, b: Self, c: Self) -> Self {
+        Self(avx2!(|h| _mm256_fmadd_ps(self.0[h], b.0[h], c.0[h])))
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Self(avx2!(|h| _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0[h])))
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Self(avx2!(|h| _mm256_sqrt_ps(self.0[h])))
+    }
+    #[inline(always)]
+    fn floor(self) -> Self {
+        Self(avx2!(|h| _mm256_floor_ps(self.0[h])))
+    }
+    #[inline(always)]
+    fn shl_23(self) -> Self {
+        Self(avx2!(|h| _mm256_castsi256_ps(_mm256_slli_epi32::<23>(
+            _mm256_castps_si256(self.0[h])
+        ))))
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        avx2!(|h| _mm256_cmp_ps::<_CMP_GT_OQ>(self.0[h], o.0[h]))
+    }
+    #[inline(always)]
+    fn ge(self, o: Self) -> Self::Mask {
+        avx2!(|h| _mm256_cmp_ps::<_CMP_GE_OQ>(self.0[h], o.0[h]))
+    }
+    #[inline(always)]
+    fn ne(self, o: Self) -> Self::Mask {
+        avx2!(|h| _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0[h], o.0[h]))
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        avx2!(|h| _mm256_and_ps(a[h], b[h]))
+    }
+    #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        Self(avx2!(|h| _mm256_blendv_ps(b.0[h], a.0[h], m[h])))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every operation of every type this processor has, against plain `f32` arithmetic.
+    #[test]
+    fn the_lane_types_agree_with_plain_arithmetic() {
+        struct Check;
+        impl Kernel<()> for Check {
+            fn run<V: F32x16>(self) {
+                let a: [f32; LANES] = std::array::from_fn(|j| j as f32 * 0.75 - 5.0);
+                let b: [f32; LANES] = std::array::from_fn(|j| 2.5 - (j % 5) as f32);
+                // SAFETY: the arrays have 16 lanes.
+                let (va, vb) = unsafe { (V::load(a.as_ptr()), V::load(b.as_ptr())) };
+                let same = |v: V, f: &dyn Fn(f32, f32) -> f32| {
+                    let v = v.to_array();
+                    for j in 0..LANES {
+                        let e = f(a[j], b[j]);
+                        assert!(
+                            v[j] == e || (v[j] - e).abs() <= 1e-6 * e.abs(),
+                            "lane {j}: {} against {e}",
+                            v[j]
+                        );
+                    }
+                };
+                same(va + vb, &|x, y| x + y);
+                same(va - vb, &|x, y| x - y);
+                same(va * vb, &|x, y| x * y);
+                same(va / vb, &|x, y| x / y);
+                same(va.mul_add(vb, va), &|x, y| x * y + x);
+                same(va.abs().sqrt(), &|x, _| x.abs().sqrt());
+                same(va.floor(), &|x, _| x.floor());
+                same(V::splat(3.0).shl_23(), &|_, _| {
+                    f32::from_bits(3f32.to_bits() << 23)
+                });
+                let m = V::and(va.gt(vb), va.ne(V::splat(-2.0)));
+                same(V::select(m, va, vb), &|x, y| {
+                    if x > y && x != -2.0 {
+                        x
+                    } else {
+                        y
+                    }
+                });
+                same(V::select(va.ge(vb), va, vb), &|x, y| {
+                    if x >= y {
+                        x
+                    } else {
+                        y
+                    }
+                });
+                let mut out = [0.0; LANES];
+                // SAFETY: `out` has 16 lanes.
+                unsafe { (va * V::splat(2.0)).store(out.as_mut_ptr()) };
+                assert_eq!(out, a.map(|x| x * 2.0));
+                let e = exp_neg(V::splat(-1.5) * va.abs()).to_array();
+                for j in 0..LANES {
+                    let x = -1.5 * a[j].abs();
+                    assert!((e[j] - x.exp()).abs() <= 2e-5 * x.exp());
+                }
+            }
+        }
+        for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
+            dispatch(isa, Check);
+        }
+    }
+}
