@@ -48,24 +48,22 @@
 //!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not
 //!   neighbours either (the window is cut at the borders, not clamped).
 //! - Windows are laid over the padded planes 16 centre pixels at a time, one row of them: each
-//!   tap is then 16 neighbours next to each other in memory, which the compiler turns into
-//!   SIMD (AVX-512 or AVX2 with fused multiply-adds where the processor has them, chosen at run
-//!   time;
-//!   without, the results differ by float rounding). Rows run in parallel; every pixel's
-//!   result depends on the inputs alone, not on the thread count.
+//!   tap is then 16 neighbours next to each other in memory, one value of [`crate::simd`]'s
+//!   lanes (AVX-512 or AVX2 with fused multiply-adds where the processor has them, chosen at
+//!   run time; without, plain arrays, and the results differ by float rounding). Rows run in
+//!   parallel; every pixel's result depends on the inputs alone, not on the thread count.
 
 use glam::Vec3;
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, FilterConfig};
-use crate::exp::{exp_neg, Fused, MulAdd, Plain};
+use crate::simd::{dispatch, exp_neg, F32x16, Isa, Kernel, LANES};
 
 use crate::features::{demodulator, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::FilterError;
 
-/// Centre pixels filtered together: one SIMD register of f32 with AVX-512, two with AVX2.
-const LANES: usize = 16;
+/// Centre pixels filtered together ([`crate::simd`]).
 type Lanes = [f32; LANES];
 
 /// The padded planes, one row of each after another: `VALID` (1 or 0), depth, normal, texture,
@@ -94,6 +92,8 @@ pub struct DataDriven {
     errors: Vec<[f32; 2]>,
     /// The planes' layout and the image's height (the padding is zero for these).
     layout: Option<(Layout, usize)>,
+    /// The widest lanes the filter uses (narrower ones for tests).
+    isa: Isa,
 }
 
 /// The planes' geometry for one frame and window.
@@ -127,6 +127,13 @@ impl Layout {
 impl DataDriven {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Caps the filter's lanes at AVX2 (`avx2`) or plain arrays (`portable`) instead of the
+    /// widest the processor has (for tests on processors with AVX-512).
+    #[doc(hidden)]
+    pub fn set_lanes(&mut self, lanes: &str) {
+        self.isa = Isa::named(lanes);
     }
 
     /// Filters `features` with `config`'s data-driven parameters into `out` (one value per
@@ -171,6 +178,7 @@ impl DataDriven {
                     scales: &scales,
                     features,
                     y,
+                    isa: self.isa,
                 };
                 job.run(row);
             });
@@ -443,6 +451,8 @@ struct Row<'a> {
     scales: &'a Scales,
     features: &'a Features<'a>,
     y: usize,
+    /// The widest lanes to use.
+    isa: Isa,
 }
 
 /// A centre pixel's values and coefficients, lane by lane.
@@ -464,57 +474,89 @@ struct Centre {
     c_texture2: Lanes,
 }
 
+/// [`Centre`] in lanes `V`.
+struct CentreLanes<V> {
+    depth: V,
+    normal: [V; 3],
+    texture: [V; 3],
+    texture2: [V; 3],
+    direct: [V; 3],
+    indirect: [V; 3],
+    c_direct: V,
+    c_indirect: V,
+    c_depth: V,
+    c_normal: V,
+    c_texture: V,
+    c_texture2: V,
+}
+
+impl<V: F32x16> CentreLanes<V> {
+    #[inline(always)]
+    fn new(c: &Centre) -> Self {
+        let one = lanes::<V>;
+        let three = |a: &[Lanes; 3]| [one(&a[0]), one(&a[1]), one(&a[2])];
+        Self {
+            depth: one(&c.depth),
+            normal: three(&c.normal),
+            texture: three(&c.texture),
+            texture2: three(&c.texture2),
+            direct: three(&c.direct),
+            indirect: three(&c.indirect),
+            c_direct: one(&c.c_direct),
+            c_indirect: one(&c.c_indirect),
+            c_depth: one(&c.c_depth),
+            c_normal: one(&c.c_normal),
+            c_texture: one(&c.c_texture),
+            c_texture2: one(&c.c_texture2),
+        }
+    }
+}
+
+/// An array's lanes.
+#[inline(always)]
+fn lanes<V: F32x16>(a: &Lanes) -> V {
+    // SAFETY: the array has `LANES` values.
+    unsafe { V::load(a.as_ptr()) }
+}
+
 /// The weighted sums of one block of centres.
-#[derive(Default)]
-struct Sums {
-    direct_w: Lanes,
-    direct: [Lanes; 3],
-    indirect_w: Lanes,
-    indirect: [Lanes; 3],
+struct Sums<V> {
+    direct_w: V,
+    direct: [V; 3],
+    indirect_w: V,
+    indirect: [V; 3],
+}
+
+/// A row's blocks run with lanes `V` ([`crate::simd::dispatch`]).
+struct RowJob<'r, 'a> {
+    row: &'r Row<'a>,
+    out: &'r mut [Vec3],
+}
+
+impl Kernel<()> for RowJob<'_, '_> {
+    #[inline(always)]
+    fn run<V: F32x16>(self) {
+        self.row.run_blocks::<V>(self.out)
+    }
 }
 
 impl Row<'_> {
     fn run(&self, out: &mut [Vec3]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("fma") {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the processor has AVX-512 and FMA (checked just above).
-                unsafe { self.run_avx512(out) };
-                return;
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor has AVX2 and FMA (checked just above).
-                unsafe { self.run_avx2(out) };
-                return;
-            }
-        }
-        self.run_blocks::<Plain>(out);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn run_avx2(&self, out: &mut [Vec3]) {
-        self.run_blocks::<Fused>(out);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,fma")]
-    fn run_avx512(&self, out: &mut [Vec3]) {
-        self.run_blocks::<Fused>(out);
+        dispatch(self.isa, RowJob { row: self, out });
     }
 
     #[inline(always)]
-    fn run_blocks<M: MulAdd>(&self, out: &mut [Vec3]) {
+    fn run_blocks<V: F32x16>(&self, out: &mut [Vec3]) {
         let width = self.layout.width;
         for x0 in (0..width).step_by(LANES) {
             let centre = self.centre(x0);
-            let sums = self.sums::<M>(x0, &centre);
+            let sums = self.sums::<V>(x0, &centre);
             // The weighted means, in lanes.
-            let light: [Lanes; 3] = std::array::from_fn(|c| {
-                std::array::from_fn(|j| {
-                    sums.direct[c][j] / sums.direct_w[j] + sums.indirect[c][j] / sums.indirect_w[j]
-                })
-            });
+            let mut light = [[0.0; LANES]; 3];
+            for (c, light) in light.iter_mut().enumerate() {
+                *light = (sums.direct[c] / sums.direct_w + sums.indirect[c] / sums.indirect_w)
+                    .to_array();
+            }
             // The block's pixels, as slices of their length (no bounds checks in the loop).
             let n = LANES.min(width - x0);
             let (f, i0) = (self.features, self.y * width + x0);
@@ -592,63 +634,58 @@ impl Row<'_> {
         c
     }
 
-    /// The weighted sums over the window of each centre of the block.
+    /// The weighted sums over the window of each centre of the block. (No closures here:
+    /// see `simd::exp_neg`.)
     #[inline(always)]
-    fn sums<M: MulAdd>(&self, x0: usize, c: &Centre) -> Sums {
+    fn sums<V: F32x16>(&self, x0: usize, centre: &Centre) -> Sums<V> {
         let l = &self.layout;
         // The window's top-left corner of the first centre.
         let corner = l.at(x0, self.y) - l.radius * l.row - l.radius;
-        let mut s = Sums::default();
         let last = self.offsets.last().map_or(0, |o| corner + o) + (PLANES - 1) * l.pitch;
         assert!(
             last + LANES <= self.planes.len(),
             "the window stays in the planes"
         );
+        let c = CentreLanes::<V>::new(centre);
+        let zero = V::splat(0.0);
+        let mut s = Sums {
+            direct_w: zero,
+            direct: [zero; 3],
+            indirect_w: zero,
+            indirect: [zero; 3],
+        };
         for &offset in self.offsets {
             let base = corner + offset;
-            let load = |plane: usize| -> Lanes {
-                let at = base + plane * l.pitch;
-                // SAFETY: `offsets` grow, so `at + LANES <= last + LANES`, which is in bounds
-                // (asserted above).
-                unsafe { *(self.planes.as_ptr().add(at) as *const Lanes) }
-            };
-            let valid = load(VALID);
-            let (scale_d, scale_i) = (load(SCALE_D), load(SCALE_I));
-            let depth = load(D);
-            let (n, t, t2, f0, f1) = (
-                [load(N), load(N + 1), load(N + 2)],
-                [load(T), load(T + 1), load(T + 2)],
-                [load(T2), load(T2 + 1), load(T2 + 2)],
-                [load(F0), load(F0 + 1), load(F0 + 2)],
-                [load(F1), load(F1 + 1), load(F1 + 2)],
-            );
-            for j in 0..LANES {
-                // k |a - b|^2 + plus.
-                let term = |a: &[Lanes; 3], b: &[Lanes; 3], k: f32, plus: f32| {
-                    let (x, y, z) = (a[0][j] - b[0][j], a[1][j] - b[1][j], a[2][j] - b[2][j]);
-                    M::mul_add(k, M::mul_add(x, x, M::mul_add(y, y, z * z)), plus)
-                };
-                let dd = depth[j] - c.depth[j];
-                let features = term(&n, &c.normal, c.c_normal[j], c.c_depth[j] * (dd * dd));
-                let features = term(&t, &c.texture, c.c_texture[j], features);
-                let wd = valid[j]
-                    * exp_neg::<M>(-term(&f0, &c.direct, c.c_direct[j] * scale_d[j], features));
-                let indirect = term(&t2, &c.texture2, c.c_texture2[j], features);
-                let wi = valid[j]
-                    * exp_neg::<M>(-term(
-                        &f1,
-                        &c.indirect,
-                        c.c_indirect[j] * scale_i[j],
-                        indirect,
-                    ));
-                s.direct_w[j] += wd;
-                s.indirect_w[j] += wi;
-                for k in 0..3 {
-                    s.direct[k][j] = M::mul_add(wd, f0[k][j], s.direct[k][j]);
-                    s.indirect[k][j] = M::mul_add(wi, f1[k][j], s.indirect[k][j]);
-                }
+            let mut v = [zero; PLANES];
+            for (plane, v) in v.iter_mut().enumerate() {
+                // SAFETY: `offsets` grow, so every plane's `base + plane * pitch + LANES <=
+                // last + LANES`, which is in bounds (asserted above).
+                *v = unsafe { V::load(self.planes.as_ptr().add(base + plane * l.pitch)) };
+            }
+            let three = |p: usize| [v[p], v[p + 1], v[p + 2]];
+            let dd = v[D] - c.depth;
+            let features = term(three(N), c.normal, c.c_normal, c.c_depth * (dd * dd));
+            let features = term(three(T), c.texture, c.c_texture, features);
+            let minus = V::splat(-1.0);
+            let wd = v[VALID]
+                * exp_neg(minus * term(three(F0), c.direct, c.c_direct * v[SCALE_D], features));
+            let indirect = term(three(T2), c.texture2, c.c_texture2, features);
+            let wi = v[VALID]
+                * exp_neg(minus * term(three(F1), c.indirect, c.c_indirect * v[SCALE_I], indirect));
+            s.direct_w = s.direct_w + wd;
+            s.indirect_w = s.indirect_w + wi;
+            for k in 0..3 {
+                s.direct[k] = wd.mul_add(v[F0 + k], s.direct[k]);
+                s.indirect[k] = wi.mul_add(v[F1 + k], s.indirect[k]);
             }
         }
         s
     }
+}
+
+/// `k |a - b|^2 + plus` in lanes.
+#[inline(always)]
+fn term<V: F32x16>(a: [V; 3], b: [V; 3], k: V, plus: V) -> V {
+    let (x, y, z) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    k.mul_add(x.mul_add(x, y.mul_add(y, z * z)), plus)
 }

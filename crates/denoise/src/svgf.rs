@@ -42,7 +42,7 @@ use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::atrous::{normal_weight, spline, Inputs, Planes, BLUR, MAX_PAD};
-use crate::exp::{exp_neg, Plain};
+use crate::exp::exp_neg;
 use crate::features::demodulator;
 use crate::FilterError;
 
@@ -139,11 +139,7 @@ impl Svgf {
     /// instead of the widest the processor has (for tests on processors with AVX-512).
     #[doc(hidden)]
     pub fn set_lanes(&mut self, lanes: &str) {
-        self.planes.isa = match lanes {
-            "portable" => crate::simd::Isa::Portable,
-            "avx2" => crate::simd::Isa::Avx2,
-            _ => crate::simd::Isa::Avx512,
-        };
+        self.planes.isa = crate::simd::Isa::named(lanes);
     }
 
     /// Forgets the history (a cut: the next frame starts afresh).
@@ -469,7 +465,7 @@ impl Svgf {
                             let wq = if q == i {
                                 kernel
                             } else if wn > 0.0 && e > -30.0 {
-                                kernel * wn * exp_neg::<Plain>(e)
+                                kernel * wn * exp_neg(e)
                             } else {
                                 // Below e^-30 of the centre's weight: nothing, and no
                                 // subnormal arithmetic (which is slow).
