@@ -73,7 +73,7 @@ pub const BLUR: [(i64, i64, f32); 9] = [
 ];
 
 /// A padded plane layout.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 struct Grid {
     width: usize,
     height: usize,
@@ -153,38 +153,56 @@ pub struct Planes {
     next: Vec<f32>,
 }
 
-/// One frame's per-pixel inputs to the passes (row-major, unpadded).
-pub struct Inputs<'a> {
+/// One frame's per-pixel inputs to the passes (row-major, unpadded; the functions of a pixel's
+/// index are worked out as the planes are laid out).
+pub struct Inputs<'a, G, T, V> {
     pub width: usize,
     pub height: usize,
     pub depth: &'a [f32],
     pub normal: &'a [Vec3],
-    pub gradient: &'a [f32],
+    /// |grad z|.
+    pub gradient: G,
     /// The sky and light sources: passed through, nobody's neighbour.
-    pub through: &'a (dyn Fn(usize) -> bool + Sync),
+    pub through: T,
     pub light: &'a [[Vec3; 2]],
-    pub variance: &'a [[f32; 2]],
+    /// The luminance variance of each signal.
+    pub variance: V,
 }
 
 impl Planes {
     /// Lays out this frame's inputs for passes with holes up to `max_step` pixels (at most
     /// [`MAX_PAD`] / 2) over the first `signals` (1 or 2) signals of the light.
-    pub fn load(&mut self, f: &Inputs, max_step: usize, signals: usize) {
+    pub fn load<G, T, V>(&mut self, f: &Inputs<G, T, V>, max_step: usize, signals: usize)
+    where
+        G: Fn(usize) -> f32 + Sync,
+        T: Fn(usize) -> bool + Sync,
+        V: Fn(usize) -> [f32; 2] + Sync,
+    {
         let (w, h) = (f.width, f.height);
         let pad = 2 * max_step;
         debug_assert!(pad <= MAX_PAD && (1..=2).contains(&signals));
         self.signals = signals;
-        self.fixed = Grid::new(w, h, pad, STATIC);
-        self.moving = Grid::new(w, h, pad, dynamic(signals));
-        let (fixed, moving) = (self.fixed, self.moving);
-        self.statics.clear();
-        self.statics.resize(fixed.len(), 0.0);
+        let (fixed, moving) = (
+            Grid::new(w, h, pad, STATIC),
+            Grid::new(w, h, pad, dynamic(signals)),
+        );
+        // The padding is zeroed when the layout changes; the passes write the image's pixels
+        // only, so it stays zero.
+        if (fixed, moving) != (self.fixed, self.moving) || self.statics.len() != fixed.len() {
+            (self.fixed, self.moving) = (fixed, moving);
+            self.statics.clear();
+            self.statics.resize(fixed.len(), 0.0);
+            for buffer in [&mut self.current, &mut self.next] {
+                buffer.clear();
+                buffer.resize(moving.len(), 0.0);
+            }
+        }
         fixed.for_rows(&mut self.statics, |y, row| {
             for x in 0..w {
                 let i = y as usize * w + x;
                 let at = |p: usize| p * fixed.pitch + pad + x;
                 row[at(Z)] = f.depth[i];
-                row[at(G)] = f.gradient[i];
+                row[at(G)] = (f.gradient)(i);
                 // The blur is (1/4, 1/2, 1/4) across times the same down: its weights inside
                 // the image sum to the product of the two (exactly: sixteenths).
                 let inside = |c: usize, n: usize| {
@@ -199,19 +217,16 @@ impl Planes {
                 }
             }
         });
-        for buffer in [&mut self.current, &mut self.next] {
-            buffer.clear();
-            buffer.resize(moving.len(), 0.0);
-        }
         moving.for_rows(&mut self.current, |y, row| {
             for x in 0..w {
                 let i = y as usize * w + x;
                 let at = |p: usize| p * moving.pitch + pad + x;
+                let variance = (f.variance)(i);
                 for s in 0..signals {
                     for k in 0..3 {
                         row[at(L + 3 * s + k)] = f.light[i][s][k];
                     }
-                    row[at(v(signals) + s)] = f.variance[i][s];
+                    row[at(v(signals) + s)] = variance[s];
                     row[at(lum(signals) + s)] = luminance(f.light[i][s]);
                 }
             }

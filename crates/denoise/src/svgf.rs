@@ -34,8 +34,10 @@
 //!   filtered with their neighbours.
 //!
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
-//! (holes of 32 pixels); the scalar passes here are the reference they are tested against and
-//! run beyond that.
+//! (holes of 32 pixels), the variance and the depth gradient worked out as the planes are laid
+//! out (each a function of the pixel, [`variance`] and [`depth_gradient`]); the scalar passes
+//! here, with their own variance and gradient buffers, are the reference they are tested
+//! against and run beyond that.
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
@@ -195,21 +197,20 @@ impl Svgf {
             self.normal = vec![Vec3::ZERO; n];
         }
         self.temporal(f);
-        self.spatial_variance(f);
-        self.depth_gradient(f);
         let pad = 2usize << iterations.saturating_sub(1);
         if pad <= MAX_PAD && !self.scalar {
-            let through = |i| passes_through(f, i);
+            // The variance and the depth gradient worked out as the planes are laid out.
+            let (moments, length) = (&self.new_moments, &self.new_length);
             self.planes.load(
                 &Inputs {
                     width: f.width,
                     height: f.height,
                     depth: f.depth,
                     normal: f.normal,
-                    gradient: &self.gradient,
-                    through: &through,
+                    gradient: |i| depth_gradient(f, i),
+                    through: |i| passes_through(f, i),
                     light: &self.light,
-                    variance: &self.variance,
+                    variance: |i| variance(f, moments, length, i),
                 },
                 pad / 2,
                 signals(split),
@@ -223,6 +224,8 @@ impl Svgf {
             self.planes
                 .map_light(out, |i, [d, n]| remodulate(f, i, d + n));
         } else {
+            self.spatial_variance(f);
+            self.depth_gradient(f);
             for i in 0..iterations {
                 self.atrous(f, kernel, 1 << i, signals(split));
                 std::mem::swap(&mut self.light, &mut self.next_light);
@@ -337,62 +340,24 @@ impl Svgf {
             });
     }
 
-    /// The luminance variance of each signal: from the temporal moments after 4 frames of
-    /// history, else from the moments of the 7x7 neighbourhood (weighted by depth and normal).
+    /// The luminance variance of each signal ([`variance`]) into `variance`.
     fn spatial_variance(&mut self, f: &SvgfFrame) {
         let n = f.width * f.height;
         self.variance.resize(n, [0.0; 2]);
-        let (w, h) = (f.width as i64, f.height as i64);
         let (moments, length) = (&self.new_moments, &self.new_length);
-        self.variance.par_iter_mut().enumerate().for_each(|(i, v)| {
-            let m = moments[i];
-            if length[i] >= 4.0 || passes_through(f, i) {
-                *v = [(m[1] - m[0] * m[0]).max(0.0), (m[3] - m[2] * m[2]).max(0.0)];
-                return;
-            }
-            let (x, y) = ((i as i64) % w, (i as i64) / w);
-            let mut sum_w = 0.0;
-            let mut acc = [0.0f32; 4];
-            for qy in (y - 3).max(0)..(y + 4).min(h) {
-                for qx in (x - 3).max(0)..(x + 4).min(w) {
-                    let q = (qy * w + qx) as usize;
-                    if passes_through(f, q) {
-                        continue;
-                    }
-                    let ez = -(f.depth[q] - f.depth[i]).abs() / (f.depth[i] * 0.05 + 1e-6);
-                    let wn = normal_weight(f.normal[q].dot(f.normal[i]));
-                    if wn <= 0.0 || ez < -30.0 {
-                        continue;
-                    }
-                    let wq = ez.exp() * wn;
-                    sum_w += wq;
-                    for k in 0..4 {
-                        acc[k] += moments[q][k] * wq;
-                    }
-                }
-            }
-            let a = acc.map(|x| x / sum_w.max(1e-12));
-            // Few frames: the spatial estimate, raised as the paper does.
-            let boost = 4.0 / (length[i] + 1.0).min(4.0);
-            *v = [
-                (a[1] - a[0] * a[0]).max(0.0) * boost,
-                (a[3] - a[2] * a[2]).max(0.0) * boost,
-            ];
-        });
+        self.variance
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| *v = variance(f, moments, length, i));
     }
 
-    /// |grad z| per pixel from central differences (for the depth test).
+    /// |grad z| per pixel ([`depth_gradient`]) into `gradient`.
     fn depth_gradient(&mut self, f: &SvgfFrame) {
-        let (w, h) = (f.width, f.height);
-        self.gradient.resize(w * h, 0.0);
-        self.gradient.par_iter_mut().enumerate().for_each(|(i, g)| {
-            let (x, y) = (i % w, i / w);
-            let d = |x: usize, y: usize| f.depth[y * w + x];
-            let dx = (d((x + 1).min(w - 1), y) - d(x.saturating_sub(1), y)) * 0.5;
-            let dy = (d(x, (y + 1).min(h - 1)) - d(x, y.saturating_sub(1))) * 0.5;
-            let gz = dx.abs().max(dy.abs());
-            *g = if gz.is_finite() { gz } else { 0.0 };
-        });
+        self.gradient.resize(f.width * f.height, 0.0);
+        self.gradient
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, g)| *g = depth_gradient(f, i));
     }
 
     /// One a-trous pass of a kernel `kernel` pixels wide with holes of `step` pixels over the
@@ -494,6 +459,60 @@ fn remodulate(f: &SvgfFrame, i: usize, light: Vec3) -> Vec3 {
         f.direct[i] + f.indirect[i]
     } else {
         light * demodulator(f.albedo[i])
+    }
+}
+
+/// Pixel `i`'s luminance variance of each signal: from the temporal `moments` after 4 frames
+/// of history (`length`), else from the moments of the 7x7 neighbourhood (weighted by depth and
+/// normal).
+fn variance(f: &SvgfFrame, moments: &[[f32; 4]], length: &[f32], i: usize) -> [f32; 2] {
+    let m = moments[i];
+    if length[i] >= 4.0 || passes_through(f, i) {
+        return [(m[1] - m[0] * m[0]).max(0.0), (m[3] - m[2] * m[2]).max(0.0)];
+    }
+    let (w, h) = (f.width as i64, f.height as i64);
+    let (x, y) = ((i as i64) % w, (i as i64) / w);
+    let mut sum_w = 0.0;
+    let mut acc = [0.0f32; 4];
+    for qy in (y - 3).max(0)..(y + 4).min(h) {
+        for qx in (x - 3).max(0)..(x + 4).min(w) {
+            let q = (qy * w + qx) as usize;
+            if passes_through(f, q) {
+                continue;
+            }
+            let ez = -(f.depth[q] - f.depth[i]).abs() / (f.depth[i] * 0.05 + 1e-6);
+            let wn = normal_weight(f.normal[q].dot(f.normal[i]));
+            if wn <= 0.0 || ez < -30.0 {
+                continue;
+            }
+            let wq = ez.exp() * wn;
+            sum_w += wq;
+            for k in 0..4 {
+                acc[k] += moments[q][k] * wq;
+            }
+        }
+    }
+    let a = acc.map(|x| x / sum_w.max(1e-12));
+    // Few frames: the spatial estimate, raised as the paper does.
+    let boost = 4.0 / (length[i] + 1.0).min(4.0);
+    [
+        (a[1] - a[0] * a[0]).max(0.0) * boost,
+        (a[3] - a[2] * a[2]).max(0.0) * boost,
+    ]
+}
+
+/// Pixel `i`'s |grad z| from central differences (for the depth test); 0 where not finite.
+fn depth_gradient(f: &SvgfFrame, i: usize) -> f32 {
+    let (w, h) = (f.width, f.height);
+    let (x, y) = (i % w, i / w);
+    let d = |x: usize, y: usize| f.depth[y * w + x];
+    let dx = (d((x + 1).min(w - 1), y) - d(x.saturating_sub(1), y)) * 0.5;
+    let dy = (d(x, (y + 1).min(h - 1)) - d(x, y.saturating_sub(1))) * 0.5;
+    let gz = dx.abs().max(dy.abs());
+    if gz.is_finite() {
+        gz
+    } else {
+        0.0
     }
 }
 
