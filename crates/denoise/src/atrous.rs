@@ -153,41 +153,29 @@ pub struct Planes {
     next: Vec<f32>,
 }
 
-/// One frame's per-pixel inputs to the passes (row-major, unpadded; the functions of a pixel's
-/// index are worked out as the planes are laid out).
-pub struct Inputs<'a, G, T, V> {
-    pub width: usize,
-    pub height: usize,
+/// One frame's per-pixel features for the passes (row-major, unpadded; the functions of a
+/// pixel's index are worked out as the planes are laid out).
+pub struct Statics<'a, G, T> {
     pub depth: &'a [f32],
     pub normal: &'a [Vec3],
     /// |grad z|.
     pub gradient: G,
     /// The sky and light sources: passed through, nobody's neighbour.
     pub through: T,
-    pub light: &'a [[Vec3; 2]],
-    /// The luminance variance of each signal.
-    pub variance: V,
 }
 
 impl Planes {
-    /// Lays out this frame's inputs for passes with holes up to `max_step` pixels (at most
-    /// [`MAX_PAD`] / 2) over the first `signals` (1 or 2) signals of the light.
-    pub fn load<G, T, V>(&mut self, f: &Inputs<G, T, V>, max_step: usize, signals: usize)
-    where
-        G: Fn(usize) -> f32 + Sync,
-        T: Fn(usize) -> bool + Sync,
-        V: Fn(usize) -> [f32; 2] + Sync,
-    {
-        let (w, h) = (f.width, f.height);
+    /// Lays the planes out for a `width x height` image, passes with holes up to `max_step`
+    /// pixels (at most [`MAX_PAD`] / 2) and `signals` (1 or 2) signals. The padding is zeroed
+    /// when the layout changes; the passes write the image's pixels only, so it stays zero.
+    pub fn layout(&mut self, width: usize, height: usize, max_step: usize, signals: usize) {
         let pad = 2 * max_step;
         debug_assert!(pad <= MAX_PAD && (1..=2).contains(&signals));
         self.signals = signals;
         let (fixed, moving) = (
-            Grid::new(w, h, pad, STATIC),
-            Grid::new(w, h, pad, dynamic(signals)),
+            Grid::new(width, height, pad, STATIC),
+            Grid::new(width, height, pad, dynamic(signals)),
         );
-        // The padding is zeroed when the layout changes; the passes write the image's pixels
-        // only, so it stays zero.
         if (fixed, moving) != (self.fixed, self.moving) || self.statics.len() != fixed.len() {
             (self.fixed, self.moving) = (fixed, moving);
             self.statics.clear();
@@ -197,6 +185,16 @@ impl Planes {
                 buffer.resize(moving.len(), 0.0);
             }
         }
+    }
+
+    /// Lays out this frame's features (after [`Self::layout`]).
+    pub fn load_statics<G, T>(&mut self, f: &Statics<G, T>)
+    where
+        G: Fn(usize) -> f32 + Sync,
+        T: Fn(usize) -> bool + Sync,
+    {
+        let fixed = self.fixed;
+        let (w, h, pad) = (fixed.width, fixed.height, fixed.pad);
         fixed.for_rows(&mut self.statics, |y, row| {
             for x in 0..w {
                 let i = y as usize * w + x;
@@ -217,17 +215,48 @@ impl Planes {
                 }
             }
         });
-        moving.for_rows(&mut self.current, |y, row| {
-            for x in 0..w {
-                let i = y as usize * w + x;
-                let at = |p: usize| p * moving.pitch + pad + x;
-                let variance = (f.variance)(i);
-                for s in 0..signals {
-                    for k in 0..3 {
-                        row[at(L + 3 * s + k)] = f.light[i][s][k];
+    }
+
+    /// Lays out each pixel's light and luminance variance (the first [`Self::layout`]'s
+    /// `signals` of them), `light(i, extra[i])` of pixel `i` (row-major), which may write
+    /// `extra` (one entry a pixel).
+    pub fn load_light<T: Send>(
+        &mut self,
+        extra: &mut [T],
+        light: impl Fn(usize, &mut T) -> ([Vec3; 2], [f32; 2]) + Sync,
+    ) {
+        let g = self.moving;
+        let (w, pad, signals) = (g.width, g.pad, self.signals);
+        assert_eq!(extra.len(), w * g.height, "one entry a pixel");
+        self.current[pad * g.row()..(pad + g.height) * g.row()]
+            .par_chunks_mut(g.row())
+            .zip(extra.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (row, extra))| {
+                for (x, e) in extra.iter_mut().enumerate() {
+                    let (l, variance) = light(y * w + x, e);
+                    let at = |p: usize| p * g.pitch + pad + x;
+                    for s in 0..signals {
+                        for k in 0..3 {
+                            row[at(L + 3 * s + k)] = l[s][k];
+                        }
+                        row[at(v(signals) + s)] = variance[s];
+                        row[at(lum(signals) + s)] = luminance(l[s]);
                     }
-                    row[at(v(signals) + s)] = variance[s];
-                    row[at(lum(signals) + s)] = luminance(f.light[i][s]);
+                }
+            });
+    }
+
+    /// Replaces the variance of the pixels where `variance(i)` gives one.
+    pub fn amend_variance(&mut self, variance: impl Fn(usize) -> Option<[f32; 2]> + Sync) {
+        let g = self.moving;
+        let signals = self.signals;
+        g.for_rows(&mut self.current, |y, row| {
+            for x in 0..g.width {
+                if let Some(value) = variance(y as usize * g.width + x) {
+                    for (s, value) in value.iter().enumerate().take(signals) {
+                        row[(v(signals) + s) * g.pitch + g.pad + x] = *value;
+                    }
                 }
             }
         });

@@ -34,16 +34,16 @@
 //!   filtered with their neighbours.
 //!
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
-//! (holes of 32 pixels), the variance and the depth gradient worked out as the planes are laid
-//! out (each a function of the pixel, [`variance`] and [`depth_gradient`]); the scalar passes
-//! here, with their own variance and gradient buffers, are the reference they are tested
-//! against and run beyond that.
+//! (holes of 32 pixels), the temporal pass, the variance and the depth gradient worked out as
+//! the planes are laid out (each a function of the pixel: `integrate`, `spatial_variance`,
+//! `depth_gradient`); the scalar passes here, with their own buffers, are the reference they
+//! are tested against and run beyond that.
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::atrous::{normal_weight, spline, Inputs, Planes, BLUR, MAX_PAD};
+use crate::atrous::{normal_weight, spline, Planes, Statics, BLUR, MAX_PAD};
 use crate::exp::exp_neg;
 use crate::features::demodulator;
 use crate::FilterError;
@@ -98,8 +98,7 @@ pub struct Svgf {
     /// Last frame's integrated (after the first a-trous pass) demodulated light.
     history: Vec<[Vec3; 2]>,
     /// Last frame's moments (first and second of luminance, direct and indirect).
-    moments: Vec<[f32; 4]>,
-    length: Vec<f32>,
+    moments: Vec<Moments>,
     depth: Vec<f32>,
     normal: Vec<Vec3>,
     // Scratch of this frame.
@@ -107,8 +106,7 @@ pub struct Svgf {
     variance: Vec<[f32; 2]>,
     next_light: Vec<[Vec3; 2]>,
     next_variance: Vec<[f32; 2]>,
-    new_moments: Vec<[f32; 4]>,
-    new_length: Vec<f32>,
+    new_moments: Vec<Moments>,
     gradient: Vec<f32>,
     /// The luminance of `light` (per a-trous pass).
     luminance: Vec<[f32; 2]>,
@@ -146,7 +144,7 @@ impl Svgf {
 
     /// Forgets the history (a cut: the next frame starts afresh).
     pub fn reset(&mut self) {
-        self.length.clear();
+        self.moments.clear();
     }
 
     /// Filters `frame` into `out` with the passes `p` gives, using and updating the history.
@@ -185,45 +183,63 @@ impl Svgf {
             return Ok(());
         }
         if (self.width, self.height, self.split) != (f.width, f.height, split)
-            || self.length.len() != n
+            || self.moments.len() != n
         {
             self.width = f.width;
             self.height = f.height;
             self.split = split;
             self.history = vec![[Vec3::ZERO; 2]; n];
-            self.moments = vec![[0.0; 4]; n];
-            self.length = vec![0.0; n];
+            self.moments = vec![Moments::default(); n];
             self.depth = vec![f32::INFINITY; n];
             self.normal = vec![Vec3::ZERO; n];
         }
-        self.temporal(f);
         let pad = 2usize << iterations.saturating_sub(1);
+        let previous = Previous {
+            history: &self.history,
+            moments: &self.moments,
+            depth: &self.depth,
+            normal: &self.normal,
+        };
         if pad <= MAX_PAD && !self.scalar {
-            // The variance and the depth gradient worked out as the planes are laid out.
-            let (moments, length) = (&self.new_moments, &self.new_length);
-            self.planes.load(
-                &Inputs {
-                    width: f.width,
-                    height: f.height,
-                    depth: f.depth,
-                    normal: f.normal,
-                    gradient: |i| depth_gradient(f, i),
-                    through: |i| passes_through(f, i),
-                    light: &self.light,
-                    variance: |i| variance(f, moments, length, i),
-                },
-                pad / 2,
-                signals(split),
-            );
+            // The temporal pass, the variance and the depth gradient worked out as the planes
+            // are laid out: the integrated light straight into them.
+            self.planes
+                .layout(f.width, f.height, pad / 2, signals(split));
+            self.planes.load_statics(&Statics {
+                depth: f.depth,
+                normal: f.normal,
+                gradient: |i| depth_gradient(f, i),
+                through: |i| passes_through(f, i),
+            });
+            self.new_moments.resize(n, Moments::default());
+            self.planes.load_light(&mut self.new_moments, |i, m| {
+                let (light, moments) = integrate(f, &previous, split, i);
+                *m = moments;
+                (light, moments.variance())
+            });
+            // Where the history is short, the variance from the neighbourhood's moments.
+            let moments = &self.new_moments;
+            self.planes
+                .amend_variance(|i| short(f, moments, i).then(|| spatial_variance(f, moments, i)));
             for i in 0..iterations {
                 self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
                 if i == 0 {
                     self.planes.light(&mut self.history);
                 }
             }
+            if iterations == 0 {
+                self.planes.light(&mut self.history);
+            }
             self.planes
                 .map_light(out, |i, [d, n]| remodulate(f, i, d + n));
         } else {
+            // Temporal accumulation into `light` and `new_moments`.
+            self.light.resize(n, [Vec3::ZERO; 2]);
+            self.new_moments.resize(n, Moments::default());
+            (&mut self.light, &mut self.new_moments)
+                .into_par_iter()
+                .enumerate()
+                .for_each(|(i, (light, m))| (*light, *m) = integrate(f, &previous, split, i));
             self.spatial_variance(f);
             self.depth_gradient(f);
             for i in 0..iterations {
@@ -234,15 +250,14 @@ impl Svgf {
                     self.history.clone_from(&self.light);
                 }
             }
+            if iterations == 0 {
+                self.history.clone_from(&self.light);
+            }
             out.par_iter_mut()
                 .enumerate()
                 .for_each(|(i, o)| *o = remodulate(f, i, self.light[i][0] + self.light[i][1]));
         }
-        if iterations == 0 {
-            self.history.clone_from(&self.light);
-        }
         std::mem::swap(&mut self.moments, &mut self.new_moments);
-        std::mem::swap(&mut self.length, &mut self.new_length);
         self.depth.clear();
         self.depth.extend_from_slice(f.depth);
         self.normal.clear();
@@ -250,105 +265,19 @@ impl Svgf {
         Ok(())
     }
 
-    /// Temporal accumulation: this frame's demodulated light blended with last frame's history
-    /// at the reprojected position.
-    fn temporal(&mut self, f: &SvgfFrame) {
-        let n = f.width * f.height;
-        let split = self.split;
-        self.light.resize(n, [Vec3::ZERO; 2]);
-        self.new_moments.resize(n, [0.0; 4]);
-        self.new_length.resize(n, 0.0);
-        let (w, h) = (f.width, f.height);
-        let (history, moments, length, depth, normal) = (
-            &self.history,
-            &self.moments,
-            &self.length,
-            &self.depth,
-            &self.normal,
-        );
-        (&mut self.light, &mut self.new_moments, &mut self.new_length)
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(i, (light, m, len))| {
-                let a = demodulator(f.albedo[i]);
-                let current = if split {
-                    [f.direct[i] / a, f.indirect[i] / a]
-                } else {
-                    [(f.direct[i] + f.indirect[i]) / a, Vec3::ZERO]
-                };
-                let lum = [luminance(current[0]), luminance(current[1])];
-                let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
-                let finite = current.iter().all(|c| c.is_finite());
-                if passes_through(f, i) || !finite {
-                    *light = if finite { current } else { [Vec3::ZERO; 2] };
-                    *m = now;
-                    *len = 0.0;
-                    return;
-                }
-                // Reverse reprojection: bilinear taps of the previous frame around p + motion.
-                let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                let prev = Vec2::new(x, y) + f.motion[i] - Vec2::splat(0.5);
-                let (x0, y0) = (prev.x.floor(), prev.y.floor());
-                let (fx, fy) = (prev.x - x0, prev.y - y0);
-                let mut sum_w = 0.0;
-                let mut old = [Vec3::ZERO; 2];
-                let mut old_m = [0.0f32; 4];
-                let mut old_len = 0.0;
-                for (dx, dy, bw) in [
-                    (0, 0, (1.0 - fx) * (1.0 - fy)),
-                    (1, 0, fx * (1.0 - fy)),
-                    (0, 1, (1.0 - fx) * fy),
-                    (1, 1, fx * fy),
-                ] {
-                    let (qx, qy) = (x0 as i64 + dx, y0 as i64 + dy);
-                    if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 || bw <= 0.0 {
-                        continue;
-                    }
-                    let q = qy as usize * w + qx as usize;
-                    if length[q] <= 0.0
-                        || !depth[q].is_finite()
-                        || (depth[q] - f.depth[i]).abs() > DEPTH_TOLERANCE * f.depth[i]
-                        || normal[q].dot(f.normal[i]) < NORMAL_COSINE
-                    {
-                        continue;
-                    }
-                    sum_w += bw;
-                    old[0] += history[q][0] * bw;
-                    old[1] += history[q][1] * bw;
-                    for k in 0..4 {
-                        old_m[k] += moments[q][k] * bw;
-                    }
-                    old_len += length[q] * bw;
-                }
-                if sum_w < 1e-3 {
-                    *light = current;
-                    *m = now;
-                    *len = 1.0;
-                    return;
-                }
-                let inv = 1.0 / sum_w;
-                let n_new = (old_len * inv + 1.0).min(MAX_LENGTH);
-                let alpha = (1.0 / n_new).max(MIN_ALPHA);
-                *light = [
-                    old[0] * inv * (1.0 - alpha) + current[0] * alpha,
-                    old[1] * inv * (1.0 - alpha) + current[1] * alpha,
-                ];
-                for k in 0..4 {
-                    m[k] = old_m[k] * inv * (1.0 - alpha) + now[k] * alpha;
-                }
-                *len = n_new;
-            });
-    }
-
-    /// The luminance variance of each signal ([`variance`]) into `variance`.
+    /// The luminance variance of each signal (from the temporal moments, or [`spatial_variance`]
+    /// where the history is [`short`]) into `variance`.
     fn spatial_variance(&mut self, f: &SvgfFrame) {
         let n = f.width * f.height;
         self.variance.resize(n, [0.0; 2]);
-        let (moments, length) = (&self.new_moments, &self.new_length);
-        self.variance
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(i, v)| *v = variance(f, moments, length, i));
+        let moments = &self.new_moments;
+        self.variance.par_iter_mut().enumerate().for_each(|(i, v)| {
+            *v = if short(f, moments, i) {
+                spatial_variance(f, moments, i)
+            } else {
+                moments[i].variance()
+            }
+        });
     }
 
     /// |grad z| per pixel ([`depth_gradient`]) into `gradient`.
@@ -462,14 +391,119 @@ fn remodulate(f: &SvgfFrame, i: usize, light: Vec3) -> Vec3 {
     }
 }
 
-/// Pixel `i`'s luminance variance of each signal: from the temporal `moments` after 4 frames
-/// of history (`length`), else from the moments of the 7x7 neighbourhood (weighted by depth and
-/// normal).
-fn variance(f: &SvgfFrame, moments: &[[f32; 4]], length: &[f32], i: usize) -> [f32; 2] {
-    let m = moments[i];
-    if length[i] >= 4.0 || passes_through(f, i) {
-        return [(m[1] - m[0] * m[0]).max(0.0), (m[3] - m[2] * m[2]).max(0.0)];
+/// Last frame's state, which the temporal pass reads.
+struct Previous<'a> {
+    /// Integrated (after the first a-trous pass) demodulated light.
+    history: &'a [[Vec3; 2]],
+    moments: &'a [Moments],
+    depth: &'a [f32],
+    normal: &'a [Vec3],
+}
+
+/// A pixel's integrated luminance moments (first and second, direct and indirect) and the
+/// length of its history in frames.
+#[derive(Debug, Clone, Copy, Default)]
+struct Moments {
+    m: [f32; 4],
+    length: f32,
+}
+
+impl Moments {
+    /// The luminance variance of each signal.
+    fn variance(&self) -> [f32; 2] {
+        let m = self.m;
+        [(m[1] - m[0] * m[0]).max(0.0), (m[3] - m[2] * m[2]).max(0.0)]
     }
+}
+
+/// Temporal accumulation at pixel `i`: this frame's demodulated light (direct and indirect
+/// apart if `split`, else their sum) blended with last frame's history at the reprojected
+/// position; the integrated light and its moments.
+fn integrate(f: &SvgfFrame, p: &Previous, split: bool, i: usize) -> ([Vec3; 2], Moments) {
+    let (w, h) = (f.width, f.height);
+    let a = demodulator(f.albedo[i]);
+    let current = if split {
+        [f.direct[i] / a, f.indirect[i] / a]
+    } else {
+        [(f.direct[i] + f.indirect[i]) / a, Vec3::ZERO]
+    };
+    let lum = [luminance(current[0]), luminance(current[1])];
+    let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
+    let finite = current.iter().all(|c| c.is_finite());
+    if passes_through(f, i) || !finite {
+        let light = if finite { current } else { [Vec3::ZERO; 2] };
+        return (
+            light,
+            Moments {
+                m: now,
+                length: 0.0,
+            },
+        );
+    }
+    // Reverse reprojection: bilinear taps of the previous frame around p + motion.
+    let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+    let prev = Vec2::new(x, y) + f.motion[i] - Vec2::splat(0.5);
+    let (x0, y0) = (prev.x.floor(), prev.y.floor());
+    let (fx, fy) = (prev.x - x0, prev.y - y0);
+    let mut sum_w = 0.0;
+    let mut old = [Vec3::ZERO; 2];
+    let mut old_m = [0.0f32; 4];
+    let mut old_len = 0.0;
+    for (dx, dy, bw) in [
+        (0, 0, (1.0 - fx) * (1.0 - fy)),
+        (1, 0, fx * (1.0 - fy)),
+        (0, 1, (1.0 - fx) * fy),
+        (1, 1, fx * fy),
+    ] {
+        let (qx, qy) = (x0 as i64 + dx, y0 as i64 + dy);
+        if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 || bw <= 0.0 {
+            continue;
+        }
+        let q = qy as usize * w + qx as usize;
+        let m = &p.moments[q];
+        if m.length <= 0.0
+            || !p.depth[q].is_finite()
+            || (p.depth[q] - f.depth[i]).abs() > DEPTH_TOLERANCE * f.depth[i]
+            || p.normal[q].dot(f.normal[i]) < NORMAL_COSINE
+        {
+            continue;
+        }
+        sum_w += bw;
+        old[0] += p.history[q][0] * bw;
+        old[1] += p.history[q][1] * bw;
+        for (o, m) in old_m.iter_mut().zip(m.m) {
+            *o += m * bw;
+        }
+        old_len += m.length * bw;
+    }
+    if sum_w < 1e-3 {
+        return (
+            current,
+            Moments {
+                m: now,
+                length: 1.0,
+            },
+        );
+    }
+    let inv = 1.0 / sum_w;
+    let n_new = (old_len * inv + 1.0).min(MAX_LENGTH);
+    let alpha = (1.0 / n_new).max(MIN_ALPHA);
+    let light = [
+        old[0] * inv * (1.0 - alpha) + current[0] * alpha,
+        old[1] * inv * (1.0 - alpha) + current[1] * alpha,
+    ];
+    let m = std::array::from_fn(|k| old_m[k] * inv * (1.0 - alpha) + now[k] * alpha);
+    (light, Moments { m, length: n_new })
+}
+
+/// Pixel `i`'s history is under 4 frames: its variance comes from its neighbourhood.
+fn short(f: &SvgfFrame, moments: &[Moments], i: usize) -> bool {
+    moments[i].length < 4.0 && !passes_through(f, i)
+}
+
+/// Pixel `i`'s luminance variance of each signal from the moments of its 7x7 neighbourhood
+/// (weighted by depth and normal), for a short history.
+fn spatial_variance(f: &SvgfFrame, moments: &[Moments], i: usize) -> [f32; 2] {
     let (w, h) = (f.width as i64, f.height as i64);
     let (x, y) = ((i as i64) % w, (i as i64) / w);
     let mut sum_w = 0.0;
@@ -487,14 +521,14 @@ fn variance(f: &SvgfFrame, moments: &[[f32; 4]], length: &[f32], i: usize) -> [f
             }
             let wq = ez.exp() * wn;
             sum_w += wq;
-            for k in 0..4 {
-                acc[k] += moments[q][k] * wq;
+            for (a, m) in acc.iter_mut().zip(moments[q].m) {
+                *a += m * wq;
             }
         }
     }
     let a = acc.map(|x| x / sum_w.max(1e-12));
     // Few frames: the spatial estimate, raised as the paper does.
-    let boost = 4.0 / (length[i] + 1.0).min(4.0);
+    let boost = 4.0 / (moments[i].length + 1.0).min(4.0);
     [
         (a[1] - a[0] * a[0]).max(0.0) * boost,
         (a[3] - a[2] * a[2]).max(0.0) * boost,
