@@ -19,6 +19,8 @@
 //!   `(1 + L_p)(1 + L_q)`, the luminances of the two pixels' light (dividing by the centre's
 //!   alone blurred the Cornell box's light into its ceiling).
 //! - **Demodulation** (`demodulate`, on): the light is filtered divided by the albedo.
+//! - **Blurred standard errors** (`error_blur`, off): in variance units, each pixel's
+//!   standard error taken over its 3x3 neighbourhood's ([`crate::data_driven`]).
 //! - **Variance scales** `s_f` (depth, normal, texture, direction, texture2) are not published;
 //!   1 each by choice.
 
@@ -116,6 +118,10 @@ pub struct FilterConfig {
     /// Data-driven: filter the light divided by the albedo (the illumination), then multiply
     /// it back (not in the thesis).
     pub demodulate: bool,
+    /// Data-driven, variance units: each pixel's standard error taken over its 3x3
+    /// neighbourhood (the root of the mean of the squares), as SVGF blurs its variance: a few
+    /// samples' variance is itself noisy (not in the thesis).
+    pub error_blur: bool,
     /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
     pub rpf_boxes: Vec<u32>,
     /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
@@ -148,6 +154,7 @@ impl Default for FilterConfig {
             depth_units: DepthUnits::Relative,
             colour_units: ColourUnits::Variance,
             demodulate: true,
+            error_blur: false,
             rpf_boxes: vec![55, 35, 17, 7],
             rpf_noise: 0.02,
             rpf_outliers: true,

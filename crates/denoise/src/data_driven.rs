@@ -43,6 +43,13 @@
 //!   demodulating; else the sample variance of the luminance over the pixel's 3x3
 //!   neighbourhood (a single sample's: the real-time case of one sample per frame). Each is at
 //!   least `0.01 (1 + L)`, so that a pixel whose samples agree exactly is not a wall to all.
+//! - **Blurred standard errors** (`error_blur`, not in the thesis; off by default): a few
+//!   samples' variance is itself noisy, and a pixel whose samples happened to agree (no
+//!   firefly among them) has an error near the floor and is a wall to its neighbours. With
+//!   the option each pixel's error is the root of the mean of the squared errors of the valid
+//!   pixels of its 3x3 neighbourhood, as SVGF blurs its variance (measured: better on the
+//!   refractive box and the interior, worse on the helmet and the garden; BENCHMARKS.md,
+//!   "Seed 001"; an edge-aware blur and one of relative errors did no better).
 //! - **Sky and bad pixels.** A pixel whose depth is not finite (the sky) or any of whose inputs
 //!   is not finite (a NaN or infinite sample) is passed through unfiltered and is nobody's
 //!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not
@@ -159,7 +166,7 @@ impl DataDriven {
         }
         let radius = (config.kernel / 2) as usize;
         let layout = Layout::new(features.width, radius);
-        self.fill_planes(features, layout, config.colour_units, config.demodulate);
+        self.fill_planes(features, layout, config);
         let step = if config.holes { 2 } else { 1 };
         let offsets: Vec<usize> = (0..=2 * radius)
             .step_by(step)
@@ -188,7 +195,8 @@ impl DataDriven {
     /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
     /// the sky and bad pixels. The padding is zeroed when the layout changes and never
     /// written after.
-    fn fill_planes(&mut self, f: &Features, layout: Layout, units: ColourUnits, demodulate: bool) {
+    fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig) {
+        let (units, demodulate) = (config.colour_units, config.demodulate);
         let rows = f.height + 2 * layout.radius;
         if self.layout != Some((layout, f.height)) {
             self.planes.clear();
@@ -210,8 +218,12 @@ impl DataDriven {
         };
         // Sized for the rows' slices even when every variance is known (then never read).
         self.errors.resize(f.len(), [0.0; 2]);
+        let blur = units == ColourUnits::Variance && config.error_blur;
         if units == ColourUnits::Variance {
             self.neighbourhood_errors(f, &albedo, &valid);
+            if blur {
+                self.blur_errors(f, &albedo, &valid);
+            }
         }
         let fill = FillRows {
             f,
@@ -219,6 +231,7 @@ impl DataDriven {
             layout,
             units,
             demodulate,
+            all_errors: blur,
         };
         let r = layout.radius;
         self.planes[r * layout.row..(r + f.height) * layout.row]
@@ -287,6 +300,59 @@ impl DataDriven {
     }
 }
 
+impl DataDriven {
+    /// Every pixel's standard errors (its own where known, else its neighbourhood's from
+    /// `errors`), then each replaced by the root of the mean of the squares over the valid
+    /// pixels of its 3x3 neighbourhood, into `errors` (`error_blur`).
+    fn blur_errors(
+        &mut self,
+        f: &Features,
+        albedo: &(dyn Fn(usize) -> Vec3 + Sync),
+        valid: &(dyn Fn(usize) -> bool + Sync),
+    ) {
+        // The squared standard errors, NaN where the pixel is not valid.
+        self.luminance.resize(f.len(), [0.0; 2]);
+        let errors = &self.errors;
+        self.luminance
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, square)| {
+                let la = luminance(albedo(i));
+                *square = std::array::from_fn(|k| {
+                    let v = f.light_variance[i][k];
+                    if !valid(i) {
+                        f32::NAN
+                    } else if known(v) {
+                        v / (la * la)
+                    } else {
+                        errors[i][k] * errors[i][k]
+                    }
+                });
+            });
+        let (squares, (w, h)) = (&self.luminance, (f.width, f.height));
+        self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
+            let (x, y) = (i % w, i / w);
+            for k in 0..2 {
+                let (mut count, mut sum) = (0.0f32, 0.0f32);
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let v = squares[yy * w + xx][k];
+                        if v.is_finite() {
+                            count += 1.0;
+                            sum += v;
+                        }
+                    }
+                }
+                e[k] = if count > 0.0 {
+                    (sum / count).sqrt()
+                } else {
+                    0.0
+                };
+            }
+        });
+    }
+}
+
 /// One row of the padded planes from the features ([`DataDriven::fill_planes`]): the
 /// features of valid pixels, zeros (and validity 0) for the sky and bad pixels. Written over
 /// the row's slices without branches, so that the compiler vectorises it (AVX-512 or AVX2
@@ -298,6 +364,8 @@ struct FillRows<'a> {
     layout: Layout,
     units: ColourUnits,
     demodulate: bool,
+    /// `errors` holds every pixel's standard errors (blurred), not only the unknown ones'.
+    all_errors: bool,
 }
 
 impl FillRows<'_> {
@@ -373,7 +441,7 @@ impl FillRows<'_> {
                     let floor = 0.01 * (1.0 + lum);
                     [0, 1].map(|k| {
                         let v = variance[x][k];
-                        let e = if known(v) {
+                        let e = if known(v) && !self.all_errors {
                             (v / (la * la)).sqrt()
                         } else {
                             errors[x][k]

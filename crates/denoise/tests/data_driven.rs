@@ -598,3 +598,46 @@ fn variance_units_follow_the_noise() {
     let out = unknown.filter(&variance);
     assert!(noise(&out) < 0.5 * noise(&few.direct), "{}", noise(&out));
 }
+
+#[test]
+fn blurred_errors_filter_a_pixel_whose_few_samples_agreed() {
+    // A flat wall at 0.5 whose pixels' means have a standard error of 1 (demodulated), but one
+    // pixel whose few samples happened to agree (variance 0) and which sits at 2 (3 above the
+    // rest once demodulated).
+    // Its own error is the floor: the colour test makes it a wall to every neighbour, and it
+    // stays as it is. With `error_blur` its error is its neighbourhood's (the root of the mean
+    // of the squares: sqrt(8/9)), and the window averages it with the wall like any pixel.
+    let (w, h) = (33, 33);
+    let mut f = Frame::flat(w, h, Vec3::splat(0.5), Vec3::ZERO);
+    // The variance of the mean of the (not demodulated) luminance: 0.5^2 for an error of 1
+    // once divided by the albedo's 0.5.
+    f.light_variance.fill([0.25, 0.0]);
+    let centre = 16 * w + 16;
+    f.direct[centre] = Vec3::splat(2.0);
+    f.light_variance[centre] = [0.0, 0.0];
+    let variance = FilterConfig {
+        colour_units: ColourUnits::Variance,
+        sigma_direct: 3.0,
+        sigma_indirect: 3.0,
+        ..data_driven()
+    };
+    let blur = FilterConfig {
+        error_blur: true,
+        ..variance.clone()
+    };
+    let (plain, blurred) = (f.filter(&variance), f.filter(&blur));
+    assert!(
+        (plain[centre].x - 2.0).abs() < 1e-3,
+        "without the blur: {}",
+        plain[centre]
+    );
+    assert!(
+        (blurred[centre].x - 0.5).abs() < 0.03,
+        "with the blur: {}",
+        blurred[centre]
+    );
+    // Away from it the wall is the wall either way.
+    let far = 4 * w + 4;
+    assert!((plain[far] - Vec3::splat(0.5)).abs().max_element() < 1e-5);
+    assert!((blurred[far] - Vec3::splat(0.5)).abs().max_element() < 1e-5);
+}

@@ -444,5 +444,12 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "linear (thesis)");
         });
         ui.checkbox(&mut f.demodulate, "demodulate by the albedo");
+        ui.add_enabled(
+            f.colour_units == ColourUnits::Variance,
+            egui::Checkbox::new(
+                &mut f.error_blur,
+                "standard errors over the 3x3 surface (not in the thesis)",
+            ),
+        );
     });
 }
