@@ -109,6 +109,22 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
             });
         }
     }
+    // The narrower lanes, where the processor has wider ones (21x21 with holes only).
+    if kernels.contains(&21) {
+        for lanes in ["avx2", "portable"] {
+            let config = FilterConfig {
+                method: Method::DataDriven,
+                kernel: 21,
+                holes: true,
+                ..FilterConfig::default()
+            };
+            let mut filter = DataDriven::new();
+            filter.set_lanes(lanes);
+            group.bench_function(format!("kernel 21 holes {lanes}"), |b| {
+                b.iter(|| filter.filter(&features, &config, &mut out).unwrap())
+            });
+        }
+    }
     group.finish();
 }
 
@@ -133,19 +149,23 @@ fn svgf(c: &mut Criterion) {
         let mut out = vec![Vec3::ZERO; n];
         let mut group = c.benchmark_group(format!("svgf {w}x{h}"));
         group.sample_size(20);
-        for (scalar, kernel, split) in [
-            (false, 5, true),
-            (true, 5, true),
-            (false, 3, true),
-            (false, 3, false),
+        for (scalar, kernel, split, lanes) in [
+            (false, 5, true, "widest"),
+            (true, 5, true, "widest"),
+            (false, 3, true, "widest"),
+            (false, 3, false, "widest"),
+            (false, 3, true, "avx2"),
+            (false, 3, true, "portable"),
         ] {
             let mut svgf = Svgf::new();
             svgf.set_scalar(scalar);
-            let name = match (scalar, kernel, split) {
-                (true, _, _) => "scalar",
-                (false, 5, _) => "vectorised",
-                (false, _, true) => "vectorised 3x3",
-                _ => "vectorised 3x3 one signal",
+            svgf.set_lanes(lanes);
+            let name = match (scalar, kernel, split, lanes) {
+                (true, ..) => "scalar".to_owned(),
+                (false, 5, _, _) => "vectorised".to_owned(),
+                (false, _, true, "widest") => "vectorised 3x3".to_owned(),
+                (false, _, true, lanes) => format!("vectorised 3x3 {lanes}"),
+                _ => "vectorised 3x3 one signal".to_owned(),
             };
             let p = SvgfParams {
                 iterations: 5,

@@ -326,13 +326,23 @@ impl F32x16 for Avx512 {
 #[derive(Clone, Copy)]
 pub struct Avx2([__m256; 2]);
 
-/// Runs an AVX2 intrinsic on each half.
+/// Runs an AVX2 intrinsic on each half (written out twice: a closure would be compiled apart,
+/// without the processor features, and leave the intrinsic a call).
 #[cfg(target_arch = "x86_64")]
 macro_rules! avx2 {
     (|$h:ident| $e:expr) => {
         // SAFETY: `Avx2` values exist only in code run after the processor was found to have
         // AVX2 and FMA (the module's safety note).
-        [0, 1].map(|$h| unsafe { $e })
+        [
+            {
+                let $h = 0;
+                unsafe { $e }
+            },
+            {
+                let $h = 1;
+                unsafe { $e }
+            },
+        ]
     };
 }
 
