@@ -128,10 +128,13 @@ impl Srgb8Encoder {
     }
 }
 
+/// The ITU-R BT.709 weights of red, green and blue in [`luminance`].
+pub const LUMINANCE: [f32; 3] = [0.2126, 0.7152, 0.0722];
+
 /// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).
 #[inline]
 pub fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    LUMINANCE[0] * c.x + LUMINANCE[1] * c.y + LUMINANCE[2] * c.z
 }
 
 #[cfg(test)]

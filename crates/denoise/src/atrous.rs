@@ -15,7 +15,7 @@
 //! sigma (the blurred variance) is worked out in the group from the variance planes.
 
 use glam::Vec3;
-use pathlight_core::color::luminance;
+use pathlight_core::color::{luminance, LUMINANCE};
 use rayon::prelude::*;
 
 use crate::simd::{dispatch, exp_neg, F32x16, Isa, Kernel, LANES};
@@ -534,9 +534,6 @@ impl Pass<'_> {
         s
     }
 }
-
-/// The weights of [`luminance`].
-const LUMINANCE: [f32; 3] = [0.2126, 0.7152, 0.0722];
 
 /// [`normal_weight`] in lanes.
 #[inline(always)]

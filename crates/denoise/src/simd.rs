@@ -9,8 +9,9 @@
 //! # Safety
 //! The AVX-512 and AVX2 types call their instructions from methods compiled without the target
 //! features (trait methods cannot carry them): they are sound only where the processor has
-//! them. Every `Avx512` or `Avx2` value is made inside a function compiled for those features
-//! and called only after the run-time check ([`dispatch`]), and never leaves it.
+//! them. The types are private to this module, so no code outside it can name them: values of
+//! them are made only by a [`Kernel`] that [`dispatch`] runs with them, inside a function
+//! compiled for those features and called after the run-time check, and they never leave it.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -126,7 +127,7 @@ pub fn exp_neg<V: F32x16>(x: V) -> V {
 
 /// A plain array: any processor.
 #[derive(Clone, Copy)]
-pub struct Portable([f32; LANES]);
+struct Portable([f32; LANES]);
 
 impl Portable {
     #[inline(always)]
@@ -221,7 +222,7 @@ impl F32x16 for Portable {
 /// One AVX-512 register (see the module's safety note).
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
-pub struct Avx512(__m512);
+struct Avx512(__m512);
 
 /// Runs an AVX-512 intrinsic.
 #[cfg(target_arch = "x86_64")]
@@ -324,7 +325,7 @@ impl F32x16 for Avx512 {
 /// Two AVX2 registers (see the module's safety note).
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
-pub struct Avx2([__m256; 2]);
+struct Avx2([__m256; 2]);
 
 /// Runs an AVX2 intrinsic on each half (written out twice: a closure would be compiled apart,
 /// without the processor features, and leave the intrinsic a call).

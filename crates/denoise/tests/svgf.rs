@@ -43,6 +43,16 @@ impl Frame {
 
     /// With a-trous kernels `kernel` pixels wide.
     fn run_with(&self, svgf: &mut Svgf, kernel: u32) -> Vec<Vec3> {
+        self.run_params(
+            svgf,
+            &SvgfParams {
+                kernel,
+                ..SvgfParams::default()
+            },
+        )
+    }
+
+    fn run_params(&self, svgf: &mut Svgf, p: &SvgfParams) -> Vec<Vec3> {
         let mut out = vec![Vec3::ZERO; self.w * self.h];
         svgf.filter(
             &SvgfFrame {
@@ -56,10 +66,7 @@ impl Frame {
                 motion: &self.motion,
                 emitter: &self.emitter,
             },
-            &SvgfParams {
-                kernel,
-                ..SvgfParams::default()
-            },
+            p,
             &mut out,
         )
         .unwrap();
@@ -241,6 +248,33 @@ fn motion_vectors_carry_the_history() {
     let row = |x: usize| out[8 * 64 + x].x;
     assert!((row(30) - 0.22).abs() < 0.02, "{}", row(30));
     assert!((row(38) - 0.88).abs() < 0.02, "{}", row(38));
+}
+
+#[test]
+fn one_signal_settles_like_two_and_switching_starts_afresh() {
+    // Direct and indirect light as one signal: a still noisy wall settles around the same
+    // mean as with two. A filter switched between the two starts its history afresh: its
+    // next frame is a new filter's first.
+    let one = SvgfParams {
+        split: false,
+        ..SvgfParams::default()
+    };
+    let (mut a, mut b) = (Svgf::new(), Svgf::new());
+    let mut last = (Vec::new(), Vec::new());
+    for k in 0..24 {
+        last = (noisy(k).run_params(&mut a, &one), noisy(k).run(&mut b));
+    }
+    let mean = |img: &[Vec3]| img.iter().map(|c| c.x).sum::<f32>() / img.len() as f32;
+    assert!(
+        (mean(&last.0) - mean(&last.1)).abs() < 0.01,
+        "{} {}",
+        mean(&last.0),
+        mean(&last.1)
+    );
+    assert!((mean(&last.0) - 0.55).abs() < 0.02, "{}", mean(&last.0));
+    let switched = noisy(24).run(&mut a);
+    let fresh = noisy(24).run(&mut Svgf::new());
+    assert_eq!(switched, fresh);
 }
 
 #[test]
