@@ -523,59 +523,46 @@ struct Row<'a> {
     isa: Isa,
 }
 
-/// A centre pixel's values and coefficients, lane by lane.
+/// A block's centre pixels' values and coefficients, in lanes: `[f32; 16]` arrays while they
+/// are worked out pixel by pixel, then values of lanes `V` for the window ([`Centre::lanes`]).
 #[derive(Default)]
-struct Centre {
-    depth: Lanes,
-    normal: [Lanes; 3],
-    texture: [Lanes; 3],
-    texture2: [Lanes; 3],
-    direct: [Lanes; 3],
-    indirect: [Lanes; 3],
-    scale_direct: Lanes,
-    scale_indirect: Lanes,
-    c_direct: Lanes,
-    c_indirect: Lanes,
-    c_depth: Lanes,
-    c_normal: Lanes,
-    c_texture: Lanes,
-    c_texture2: Lanes,
+struct Centre<T> {
+    depth: T,
+    normal: [T; 3],
+    texture: [T; 3],
+    texture2: [T; 3],
+    direct: [T; 3],
+    indirect: [T; 3],
+    scale_direct: T,
+    scale_indirect: T,
+    c_direct: T,
+    c_indirect: T,
+    c_depth: T,
+    c_normal: T,
+    c_texture: T,
+    c_texture2: T,
 }
 
-/// [`Centre`] in lanes `V`.
-struct CentreLanes<V> {
-    depth: V,
-    normal: [V; 3],
-    texture: [V; 3],
-    texture2: [V; 3],
-    direct: [V; 3],
-    indirect: [V; 3],
-    c_direct: V,
-    c_indirect: V,
-    c_depth: V,
-    c_normal: V,
-    c_texture: V,
-    c_texture2: V,
-}
-
-impl<V: F32x16> CentreLanes<V> {
+impl Centre<Lanes> {
     #[inline(always)]
-    fn new(c: &Centre) -> Self {
+    fn lanes<V: F32x16>(&self) -> Centre<V> {
         let one = lanes::<V>;
         let three = |a: &[Lanes; 3]| [one(&a[0]), one(&a[1]), one(&a[2])];
-        Self {
-            depth: one(&c.depth),
-            normal: three(&c.normal),
-            texture: three(&c.texture),
-            texture2: three(&c.texture2),
-            direct: three(&c.direct),
-            indirect: three(&c.indirect),
-            c_direct: one(&c.c_direct),
-            c_indirect: one(&c.c_indirect),
-            c_depth: one(&c.c_depth),
-            c_normal: one(&c.c_normal),
-            c_texture: one(&c.c_texture),
-            c_texture2: one(&c.c_texture2),
+        Centre {
+            depth: one(&self.depth),
+            normal: three(&self.normal),
+            texture: three(&self.texture),
+            texture2: three(&self.texture2),
+            direct: three(&self.direct),
+            indirect: three(&self.indirect),
+            scale_direct: one(&self.scale_direct),
+            scale_indirect: one(&self.scale_indirect),
+            c_direct: one(&self.c_direct),
+            c_indirect: one(&self.c_indirect),
+            c_depth: one(&self.c_depth),
+            c_normal: one(&self.c_normal),
+            c_texture: one(&self.c_texture),
+            c_texture2: one(&self.c_texture2),
         }
     }
 }
@@ -650,7 +637,7 @@ impl Row<'_> {
 
     /// The block's centre values and coefficients (lanes past the row's end are padding).
     #[inline(always)]
-    fn centre(&self, x0: usize) -> Centre {
+    fn centre(&self, x0: usize) -> Centre<Lanes> {
         let s = self.scales;
         let l = &self.layout;
         let base = l.at(x0, self.y);
@@ -705,7 +692,7 @@ impl Row<'_> {
     /// The weighted sums over the window of each centre of the block. (No closures here:
     /// see `simd::exp_neg`.)
     #[inline(always)]
-    fn sums<V: F32x16>(&self, x0: usize, centre: &Centre) -> Sums<V> {
+    fn sums<V: F32x16>(&self, x0: usize, centre: &Centre<Lanes>) -> Sums<V> {
         let l = &self.layout;
         // The window's top-left corner of the first centre.
         let corner = l.at(x0, self.y) - l.radius * l.row - l.radius;
@@ -714,7 +701,7 @@ impl Row<'_> {
             last + LANES <= self.planes.len(),
             "the window stays in the planes"
         );
-        let c = CentreLanes::<V>::new(centre);
+        let c = centre.lanes::<V>();
         let zero = V::splat(0.0);
         let mut s = Sums {
             direct_w: zero,
