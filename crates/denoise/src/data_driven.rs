@@ -273,28 +273,17 @@ impl DataDriven {
         let lum = &self.luminance;
         let (w, h) = (f.width, f.height);
         self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
-            for k in 0..2 {
+            for (k, e) in e.iter_mut().enumerate() {
                 if known(f.light_variance[i][k]) {
                     continue;
                 }
-                let (x, y) = (i % w, i / w);
-                let (mut count, mut sum, mut sq) = (0.0f32, 0.0f32, 0.0f32);
-                for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                        let v = lum[yy * w + xx][k];
-                        if v.is_finite() {
-                            count += 1.0;
-                            sum += v;
-                            sq += v * v;
-                        }
-                    }
-                }
+                let [count, sum, sq] = neighbourhood(lum, (w, h), i, k);
                 let variance = if count > 1.0 {
                     ((sq - sum * sum / count) / (count - 1.0)).max(0.0)
                 } else {
                     0.0
                 };
-                e[k] = variance.sqrt();
+                *e = variance.sqrt();
             }
         });
     }
@@ -331,19 +320,9 @@ impl DataDriven {
             });
         let (squares, (w, h)) = (&self.luminance, (f.width, f.height));
         self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
-            let (x, y) = (i % w, i / w);
-            for k in 0..2 {
-                let (mut count, mut sum) = (0.0f32, 0.0f32);
-                for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                        let v = squares[yy * w + xx][k];
-                        if v.is_finite() {
-                            count += 1.0;
-                            sum += v;
-                        }
-                    }
-                }
-                e[k] = if count > 0.0 {
+            for (k, e) in e.iter_mut().enumerate() {
+                let [count, sum, _] = neighbourhood(squares, (w, h), i, k);
+                *e = if count > 0.0 {
                     (sum / count).sqrt()
                 } else {
                     0.0
@@ -473,6 +452,23 @@ fn valid_pixel(depth: f32, vectors: [Vec3; 5]) -> bool {
     vectors
         .iter()
         .fold(depth.is_finite(), |ok, v| ok & v.is_finite())
+}
+
+/// The count, sum and sum of squares of the finite values of signal `k` over pixel `i`'s 3x3
+/// neighbourhood (cut at the borders) in a `size` image.
+fn neighbourhood(values: &[[f32; 2]], size: (usize, usize), i: usize, k: usize) -> [f32; 3] {
+    let (w, h) = size;
+    let (x, y) = (i % w, i / w);
+    let mut acc = [0.0f32; 3];
+    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+            let v = values[yy * w + xx][k];
+            if v.is_finite() {
+                acc = [acc[0] + 1.0, acc[1] + v, acc[2] + v * v];
+            }
+        }
+    }
+    acc
 }
 
 /// A variance the caller gives (finite and not negative; NaN: not known).
