@@ -1,6 +1,6 @@
 //! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 16 centre pixels at a
-//! time in the lanes of [`crate::simd`] (one AVX-512 register, or two AVX2 ones, with FMA, as the
-//! processor has them), one or two signals: the same weights and taps as the scalar pass in
+//! time in the lanes of [`crate::simd`] (one AVX-512 register, or 8 at a time in an AVX2 one,
+//! with FMA, as the processor has them), one or two signals: the same weights and taps as the scalar pass in
 //! `svgf.rs`, which stays as the reference (a test holds them together, for every kind of lanes)
 //! and for passes too wide for the planes' padding.
 //!
@@ -18,7 +18,7 @@ use glam::Vec3;
 use pathlight_core::color::{luminance, LUMINANCE};
 use rayon::prelude::*;
 
-use crate::simd::{dispatch, exp_neg, F32x16, Isa, Kernel, LANES};
+use crate::simd::{dispatch, exp_neg, F32xN, Isa, Kernel, LANES};
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
@@ -350,7 +350,7 @@ struct Row<'p, 'a> {
 
 impl Kernel<()> for Row<'_, '_> {
     #[inline(always)]
-    fn run<V: F32x16>(self) {
+    fn run<V: F32xN>(self) {
         let p = self.pass;
         match (p.wide, p.signals) {
             (true, 2) => p.row_lanes::<V, 2, 2>(self.y, self.row),
@@ -368,8 +368,8 @@ impl Pass<'_> {
     }
 
     #[inline(always)]
-    fn row_lanes<V: F32x16, const R: i64, const S: usize>(&self, y: i64, row: &mut [f32]) {
-        for x0 in (0..self.moving.width).step_by(LANES) {
+    fn row_lanes<V: F32xN, const R: i64, const S: usize>(&self, y: i64, row: &mut [f32]) {
+        for x0 in (0..self.moving.width).step_by(V::N) {
             self.group::<V, R, S>(x0 as i64, y, row);
         }
     }
@@ -382,7 +382,7 @@ impl Pass<'_> {
     /// padding, so every index [`Grid::at`] gives for a tap of a centre group (x in
     /// `0..width` by 16, y in `0..height`) is inside its plane's padded row.
     #[inline(always)]
-    unsafe fn lanes<V: F32x16>(buffer: &[f32], at: usize) -> V {
+    unsafe fn lanes<V: F32xN>(buffer: &[f32], at: usize) -> V {
         debug_assert!(at + LANES <= buffer.len());
         // SAFETY: the caller's contract.
         unsafe { V::load(buffer.as_ptr().add(at)) }
@@ -390,7 +390,7 @@ impl Pass<'_> {
 
     /// Plane `p` of the statics at the 16 pixels from (x, y) on.
     #[inline(always)]
-    fn st<V: F32x16>(&self, p: usize, x: i64, y: i64) -> V {
+    fn st<V: F32xN>(&self, p: usize, x: i64, y: i64) -> V {
         // SAFETY: the taps lie within the padding (asserted by `Planes::pass`), the centre
         // group within the image.
         unsafe { Self::lanes(self.statics, self.fixed.at(x, y, p)) }
@@ -398,7 +398,7 @@ impl Pass<'_> {
 
     /// Plane `p` of the current light, variance and luminance at the 16 pixels from (x, y) on.
     #[inline(always)]
-    fn dy<V: F32x16>(&self, p: usize, x: i64, y: i64) -> V {
+    fn dy<V: F32xN>(&self, p: usize, x: i64, y: i64) -> V {
         // SAFETY: as in `st`.
         unsafe { Self::lanes(self.current, self.moving.at(x, y, p)) }
     }
@@ -407,12 +407,12 @@ impl Pass<'_> {
     /// over `S` signals into `row`: the weighted means, the pixels that pass through kept as
     /// they are, and the luminances of the result. (No closures here: see `simd::exp_neg`.)
     #[inline(always)]
-    fn group<V: F32x16, const R: i64, const S: usize>(&self, x0: i64, y: i64, row: &mut [f32]) {
+    fn group<V: F32xN, const R: i64, const S: usize>(&self, x0: i64, y: i64, row: &mut [f32]) {
         let s = self.sums::<V, R, S>(x0, y);
         let g = self.moving;
         let (v, lum) = (v(S), lum(S));
         let through = self.st::<V>(THROUGH, x0, y).ne(V::splat(0.0));
-        let n = LANES.min(g.width - x0 as usize);
+        let n = V::N.min(g.width - x0 as usize);
         let [r, gr, b] = [
             V::splat(LUMINANCE[0]),
             V::splat(LUMINANCE[1]),
@@ -432,8 +432,8 @@ impl Pass<'_> {
             let l = L + 3 * sig;
             for (value, p) in out.into_iter().zip([l, l + 1, l + 2, v + sig, lum + sig]) {
                 let at = p * g.pitch + g.pad + x0 as usize;
-                if n == LANES {
-                    assert!(at + LANES <= row.len());
+                if n == V::N {
+                    assert!(at + V::N <= row.len());
                     // SAFETY: checked just above.
                     unsafe { value.store(row.as_mut_ptr().add(at)) }
                 } else {
@@ -448,7 +448,7 @@ impl Pass<'_> {
     /// The weighted sums of a kernel of radius `R` over the [`LANES`] pixels from (x0, y) on,
     /// for `S` signals.
     #[inline(always)]
-    fn sums<V: F32x16, const R: i64, const S: usize>(&self, x0: i64, y: i64) -> Sums<V, S> {
+    fn sums<V: F32xN, const R: i64, const S: usize>(&self, x0: i64, y: i64) -> Sums<V, S> {
         let h = spline(2 * R as u32 + 1);
         let (v, lum) = (v(S), lum(S));
         let splat = V::splat;
@@ -537,7 +537,7 @@ impl Pass<'_> {
 
 /// [`normal_weight`] in lanes.
 #[inline(always)]
-fn normal_weight_lanes<V: F32x16>(cos: V) -> V {
+fn normal_weight_lanes<V: F32xN>(cos: V) -> V {
     let mut w = V::select(cos.ge(V::splat(0.6)), cos, V::splat(0.0));
     for _ in 0..7 {
         w = w * w;

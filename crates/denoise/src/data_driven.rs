@@ -56,8 +56,9 @@
 //!   neighbours either (the window is cut at the borders, not clamped).
 //! - Windows are laid over the padded planes 16 centre pixels at a time, one row of them: each
 //!   tap is then 16 neighbours next to each other in memory, one value of [`crate::simd`]'s
-//!   lanes (AVX-512 or AVX2 with fused multiply-adds where the processor has them, chosen at
-//!   run time; without, plain arrays, and the results differ by float rounding). Rows run in
+//!   lanes (AVX-512, or 8 pixels at a time with AVX2, with fused multiply-adds where the
+//!   processor has them, chosen at run time; without, plain arrays, and the results differ by
+//!   float rounding). Rows run in
 //!   parallel; every pixel's result depends on the inputs alone, not on the thread count.
 
 use glam::Vec3;
@@ -65,7 +66,7 @@ use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, FilterConfig};
-use crate::simd::{dispatch, exp_neg, F32x16, Isa, Kernel, LANES};
+use crate::simd::{dispatch, exp_neg, F32xN, Isa, Kernel, LANES};
 
 use crate::features::{demodulator, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::FilterError;
@@ -541,7 +542,7 @@ struct Centre<T> {
 
 impl Centre<Lanes> {
     #[inline(always)]
-    fn lanes<V: F32x16>(&self) -> Centre<V> {
+    fn lanes<V: F32xN>(&self) -> Centre<V> {
         let one = lanes::<V>;
         let three = |a: &[Lanes; 3]| [one(&a[0]), one(&a[1]), one(&a[2])];
         Centre {
@@ -565,7 +566,7 @@ impl Centre<Lanes> {
 
 /// An array's lanes.
 #[inline(always)]
-fn lanes<V: F32x16>(a: &Lanes) -> V {
+fn lanes<V: F32xN>(a: &Lanes) -> V {
     // SAFETY: the array has `LANES` values.
     unsafe { V::load(a.as_ptr()) }
 }
@@ -586,7 +587,7 @@ struct RowJob<'r, 'a> {
 
 impl Kernel<()> for RowJob<'_, '_> {
     #[inline(always)]
-    fn run<V: F32x16>(self) {
+    fn run<V: F32xN>(self) {
         self.row.run_blocks::<V>(self.out)
     }
 }
@@ -597,9 +598,9 @@ impl Row<'_> {
     }
 
     #[inline(always)]
-    fn run_blocks<V: F32x16>(&self, out: &mut [Vec3]) {
+    fn run_blocks<V: F32xN>(&self, out: &mut [Vec3]) {
         let width = self.layout.width;
-        for x0 in (0..width).step_by(LANES) {
+        for x0 in (0..width).step_by(V::N) {
             let centre = self.centre(x0);
             let sums = self.sums::<V>(x0, &centre);
             // The weighted means, in lanes.
@@ -609,7 +610,7 @@ impl Row<'_> {
                     .to_array();
             }
             // The block's pixels, as slices of their length (no bounds checks in the loop).
-            let n = LANES.min(width - x0);
+            let n = V::N.min(width - x0);
             let (f, i0) = (self.features, self.y * width + x0);
             let (direct, indirect) = (&f.direct[i0..i0 + n], &f.indirect[i0..i0 + n]);
             let albedo = &f.albedo[i0..i0 + n];
@@ -688,7 +689,7 @@ impl Row<'_> {
     /// The weighted sums over the window of each centre of the block. (No closures here:
     /// see `simd::exp_neg`.)
     #[inline(always)]
-    fn sums<V: F32x16>(&self, x0: usize, centre: &Centre<Lanes>) -> Sums<V> {
+    fn sums<V: F32xN>(&self, x0: usize, centre: &Centre<Lanes>) -> Sums<V> {
         let l = &self.layout;
         // The window's top-left corner of the first centre.
         let corner = l.at(x0, self.y) - l.radius * l.row - l.radius;
@@ -736,7 +737,7 @@ impl Row<'_> {
 
 /// `k |a - b|^2 + plus` in lanes.
 #[inline(always)]
-fn term<V: F32x16>(a: [V; 3], b: [V; 3], k: V, plus: V) -> V {
+fn term<V: F32xN>(a: [V; 3], b: [V; 3], k: V, plus: V) -> V {
     let (x, y, z) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     k.mul_add(x.mul_add(x, y.mul_add(y, z * z)), plus)
 }

@@ -1,5 +1,6 @@
-//! Sixteen `f32` lanes as one value: an AVX-512 register, two AVX2 ones, or a plain array
-//! (any other processor), behind one trait so that a filter's hot loop is written once.
+//! `f32` lanes as one value: sixteen in an AVX-512 register, eight in an AVX2 one, or sixteen
+//! in a plain array (any other processor), behind one trait so that a filter's hot loop is
+//! written once for [`F32xN::N`] pixels at a time.
 //!
 //! The filters first wrote their lanes as `[f32; 16]` arrays in loops the compiler vectorises;
 //! that works while a loop's body is small, but in SVGF's a-trous taps LLVM kept the sums in
@@ -17,22 +18,25 @@
 use std::arch::x86_64::*;
 use std::ops::{Add, Div, Mul, Sub};
 
-/// The lanes of one value.
+/// The most lanes of one value (the width the filters' planes are padded for).
 pub const LANES: usize = 16;
 
-/// Sixteen `f32` lanes.
-pub trait F32x16:
+/// `N` `f32` lanes (at most [`LANES`]).
+pub trait F32xN:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
 {
+    /// The lanes.
+    const N: usize;
     /// Per-lane truth values.
     type Mask: Copy;
     /// # Safety
-    /// `p..p + 16` is readable.
+    /// `p..p + N` is readable.
     unsafe fn load(p: *const f32) -> Self;
     /// # Safety
-    /// `p..p + 16` is writable.
+    /// `p..p + N` is writable.
     unsafe fn store(self, p: *mut f32);
     fn splat(x: f32) -> Self;
+    /// The lanes in the first `N` values (the rest zero).
     fn to_array(self) -> [f32; LANES];
     /// `self * b + c`, fused where the processor has FMA.
     fn mul_add(self, b: Self, c: Self) -> Self;
@@ -55,7 +59,7 @@ pub trait F32x16:
 pub enum Isa {
     /// Plain arrays (any processor).
     Portable,
-    /// Two AVX2 registers with FMA.
+    /// An AVX2 register with FMA (8 lanes).
     Avx2,
     /// One AVX-512 register with FMA.
     #[default]
@@ -93,7 +97,7 @@ pub fn dispatch<R>(cap: Isa, f: impl Kernel<R>) -> R {
 
 /// A computation over lanes of any width (a generic closure).
 pub trait Kernel<R> {
-    fn run<V: F32x16>(self) -> R;
+    fn run<V: F32xN>(self) -> R;
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -110,7 +114,7 @@ unsafe fn run_avx2<R>(f: impl Kernel<R>) -> R {
 
 /// `e^x` for `x <= 0` in lanes: [`crate::exp::exp_neg`]'s method and polynomial.
 #[inline(always)]
-pub fn exp_neg<V: F32x16>(x: V) -> V {
+pub fn exp_neg<V: F32xN>(x: V) -> V {
     use crate::exp::{EXP2_POLY, LOWEST};
     let x = V::select(x.ge(V::splat(LOWEST)), x, V::splat(LOWEST));
     let t = x * V::splat(std::f32::consts::LOG2_E);
@@ -157,7 +161,8 @@ portable_op!(Sub, sub, -);
 portable_op!(Mul, mul, *);
 portable_op!(Div, div, /);
 
-impl F32x16 for Portable {
+impl F32xN for Portable {
+    const N: usize = LANES;
     type Mask = [bool; LANES];
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
@@ -256,7 +261,8 @@ avx512_op!(Mul, mul, _mm512_mul_ps);
 avx512_op!(Div, div, _mm512_div_ps);
 
 #[cfg(target_arch = "x86_64")]
-impl F32x16 for Avx512 {
+impl F32xN for Avx512 {
+    const N: usize = 16;
     type Mask = __mmask16;
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
@@ -322,28 +328,18 @@ impl F32x16 for Avx512 {
     }
 }
 
-/// Two AVX2 registers (see the module's safety note).
+/// One AVX2 register, eight lanes (see the module's safety note).
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
-struct Avx2([__m256; 2]);
+struct Avx2(__m256);
 
-/// Runs an AVX2 intrinsic on each half (written out twice: a closure would be compiled apart,
-/// without the processor features, and leave the intrinsic a call).
+/// Runs an AVX2 intrinsic.
 #[cfg(target_arch = "x86_64")]
 macro_rules! avx2 {
-    (|$h:ident| $e:expr) => {
+    ($e:expr) => {
         // SAFETY: `Avx2` values exist only in code run after the processor was found to have
         // AVX2 and FMA (the module's safety note).
-        [
-            {
-                let $h = 0;
-                unsafe { $e }
-            },
-            {
-                let $h = 1;
-                unsafe { $e }
-            },
-        ]
+        unsafe { $e }
     };
 }
 
@@ -354,7 +350,7 @@ macro_rules! avx2_op {
             type Output = Self;
             #[inline(always)]
             fn $method(self, o: Self) -> Self {
-                Self(avx2!(|h| $intrinsic(self.0[h], o.0[h])))
+                Self(avx2!($intrinsic(self.0, o.0)))
             }
         }
     };
@@ -369,71 +365,69 @@ avx2_op!(Mul, mul, _mm256_mul_ps);
 avx2_op!(Div, div, _mm256_div_ps);
 
 #[cfg(target_arch = "x86_64")]
-impl F32x16 for Avx2 {
-    type Mask = [__m256; 2];
+impl F32xN for Avx2 {
+    const N: usize = 8;
+    type Mask = __m256;
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
-        Self(avx2!(|h| _mm256_loadu_ps(p.add(8 * h))))
+        Self(avx2!(_mm256_loadu_ps(p)))
     }
     #[inline(always)]
     unsafe fn store(self, p: *mut f32) {
-        for h in 0..2 {
-            // SAFETY: the caller's contract, and the module's safety note.
-            unsafe { _mm256_storeu_ps(p.add(8 * h), self.0[h]) }
-        }
+        avx2!(_mm256_storeu_ps(p, self.0))
     }
     #[inline(always)]
     fn splat(x: f32) -> Self {
-        Self(avx2!(|_h| _mm256_set1_ps(x)))
+        Self(avx2!(_mm256_set1_ps(x)))
     }
     #[inline(always)]
     fn to_array(self) -> [f32; LANES] {
         let mut a = [0.0; LANES];
-        // SAFETY: `a` has 16 lanes.
+        // SAFETY: `a` has room for 8 lanes.
         unsafe { self.store(a.as_mut_ptr()) };
         a
     }
     #[inline(always)]
     fn mul_add(self, b: Self, c: Self) -> Self {
-        Self(avx2!(|h| _mm256_fmadd_ps(self.0[h], b.0[h], c.0[h])))
+        Self(avx2!(_mm256_fmadd_ps(self.0, b.0, c.0)))
     }
     #[inline(always)]
     fn abs(self) -> Self {
-        Self(avx2!(|h| _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0[h])))
+        Self(avx2!(_mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0)))
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
-        Self(avx2!(|h| _mm256_sqrt_ps(self.0[h])))
+        Self(avx2!(_mm256_sqrt_ps(self.0)))
     }
     #[inline(always)]
     fn floor(self) -> Self {
-        Self(avx2!(|h| _mm256_floor_ps(self.0[h])))
+        Self(avx2!(_mm256_floor_ps(self.0)))
     }
     #[inline(always)]
     fn shl_23(self) -> Self {
-        Self(avx2!(|h| _mm256_castsi256_ps(_mm256_slli_epi32::<23>(
-            _mm256_castps_si256(self.0[h])
+        Self(avx2!(_mm256_castsi256_ps(_mm256_slli_epi32::<23>(
+            _mm256_castps_si256(self.0)
         ))))
     }
     #[inline(always)]
     fn gt(self, o: Self) -> Self::Mask {
-        avx2!(|h| _mm256_cmp_ps::<_CMP_GT_OQ>(self.0[h], o.0[h]))
+        avx2!(_mm256_cmp_ps::<_CMP_GT_OQ>(self.0, o.0))
     }
     #[inline(always)]
     fn ge(self, o: Self) -> Self::Mask {
-        avx2!(|h| _mm256_cmp_ps::<_CMP_GE_OQ>(self.0[h], o.0[h]))
+        avx2!(_mm256_cmp_ps::<_CMP_GE_OQ>(self.0, o.0))
     }
     #[inline(always)]
     fn ne(self, o: Self) -> Self::Mask {
-        avx2!(|h| _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0[h], o.0[h]))
+        avx2!(_mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, o.0))
     }
     #[inline(always)]
     fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
-        avx2!(|h| _mm256_and_ps(a[h], b[h]))
+        avx2!(_mm256_and_ps(a, b))
     }
     #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
-        Self(avx2!(|h| _mm256_blendv_ps(b.0[h], a.0[h], m[h])))
+        Self(avx2!(_mm256_blendv_ps(b.0, a.0, m)))
     }
 }
 
@@ -446,14 +440,15 @@ mod tests {
     fn the_lane_types_agree_with_plain_arithmetic() {
         struct Check;
         impl Kernel<()> for Check {
-            fn run<V: F32x16>(self) {
+            fn run<V: F32xN>(self) {
                 let a: [f32; LANES] = std::array::from_fn(|j| j as f32 * 0.75 - 5.0);
                 let b: [f32; LANES] = std::array::from_fn(|j| 2.5 - (j % 5) as f32);
                 // SAFETY: the arrays have 16 lanes.
                 let (va, vb) = unsafe { (V::load(a.as_ptr()), V::load(b.as_ptr())) };
                 let same = |v: V, f: &dyn Fn(f32, f32) -> f32| {
                     let v = v.to_array();
-                    for j in 0..LANES {
+                    assert!(v[V::N..].iter().all(|x| *x == 0.0), "beyond the lanes");
+                    for j in 0..V::N {
                         let e = f(a[j], b[j]);
                         assert!(
                             v[j] == e || (v[j] - e).abs() <= 1e-6 * e.abs(),
@@ -487,12 +482,14 @@ mod tests {
                         y
                     }
                 });
-                let mut out = [0.0; LANES];
+                let mut out = [7.0; LANES];
                 // SAFETY: `out` has 16 lanes.
                 unsafe { (va * V::splat(2.0)).store(out.as_mut_ptr()) };
-                assert_eq!(out, a.map(|x| x * 2.0));
-                let e = exp_neg(V::splat(-1.5) * va.abs()).to_array();
                 for j in 0..LANES {
+                    assert_eq!(out[j], if j < V::N { a[j] * 2.0 } else { 7.0 });
+                }
+                let e = exp_neg(V::splat(-1.5) * va.abs()).to_array();
+                for j in 0..V::N {
                     let x = -1.5 * a[j].abs();
                     let scalar = crate::exp::exp_neg(x);
                     assert!((e[j] - scalar).abs() <= 1e-6 * scalar, "e^{x}: {}", e[j]);
