@@ -94,9 +94,10 @@ const PLANES: usize = 19;
 #[derive(Default)]
 pub struct DataDriven {
     planes: Vec<f32>,
-    /// Variance units: each pixel's demodulated luminance of direct and indirect light, and
-    /// the standard errors of their means.
-    luminance: Vec<[f32; 2]>,
+    /// Variance units, per pixel and signal (direct, indirect): a scratch value (the
+    /// demodulated luminance for the single-sample errors, then the squared error for
+    /// `error_blur`), and the standard error of the mean.
+    per_signal: Vec<[f32; 2]>,
     errors: Vec<[f32; 2]>,
     /// The planes' layout and the image's height (the padding is zero for these).
     layout: Option<(Layout, usize)>,
@@ -259,8 +260,8 @@ impl DataDriven {
             return;
         }
         let n = f.len();
-        self.luminance.resize(n, [0.0; 2]);
-        self.luminance
+        self.per_signal.resize(n, [0.0; 2]);
+        self.per_signal
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, l)| {
@@ -271,7 +272,7 @@ impl DataDriven {
                     [f32::NAN; 2]
                 };
             });
-        let lum = &self.luminance;
+        let lum = &self.per_signal;
         let (w, h) = (f.width, f.height);
         self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
             for (k, e) in e.iter_mut().enumerate() {
@@ -301,9 +302,9 @@ impl DataDriven {
         valid: &(dyn Fn(usize) -> bool + Sync),
     ) {
         // The squared standard errors, NaN where the pixel is not valid.
-        self.luminance.resize(f.len(), [0.0; 2]);
+        self.per_signal.resize(f.len(), [0.0; 2]);
         let errors = &self.errors;
-        self.luminance
+        self.per_signal
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, square)| {
@@ -319,7 +320,7 @@ impl DataDriven {
                     }
                 });
             });
-        let (squares, (w, h)) = (&self.luminance, (f.width, f.height));
+        let (squares, (w, h)) = (&self.per_signal, (f.width, f.height));
         self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
             for (k, e) in e.iter_mut().enumerate() {
                 let [count, sum, _] = neighbourhood(squares, (w, h), i, k);

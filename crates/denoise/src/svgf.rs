@@ -526,13 +526,13 @@ fn spatial_variance(f: &SvgfFrame, moments: &[Moments], i: usize) -> [f32; 2] {
             }
         }
     }
-    let a = acc.map(|x| x / sum_w.max(1e-12));
+    let mean = Moments {
+        m: acc.map(|x| x / sum_w.max(1e-12)),
+        length: moments[i].length,
+    };
     // Few frames: the spatial estimate, raised as the paper does.
-    let boost = 4.0 / (moments[i].length + 1.0).min(4.0);
-    [
-        (a[1] - a[0] * a[0]).max(0.0) * boost,
-        (a[3] - a[2] * a[2]).max(0.0) * boost,
-    ]
+    let boost = 4.0 / (mean.length + 1.0).min(4.0);
+    mean.variance().map(|v| v * boost)
 }
 
 /// Pixel `i`'s |grad z| from central differences (for the depth test); 0 where not finite.
