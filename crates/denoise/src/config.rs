@@ -132,6 +132,9 @@ pub struct FilterConfig {
     /// RPF: filter each sample's colour divided by its base colour, then multiply it back
     /// (not in the paper).
     pub rpf_demodulate: bool,
+    /// RPF: samples of the sky (camera rays that left the scene) pass through unfiltered and
+    /// are no pixel's neighbours (not in the paper).
+    pub rpf_sky: bool,
 }
 
 impl Default for FilterConfig {
@@ -159,6 +162,7 @@ impl Default for FilterConfig {
             rpf_noise: 0.02,
             rpf_outliers: true,
             rpf_demodulate: false,
+            rpf_sky: true,
         }
     }
 }
@@ -233,6 +237,7 @@ impl FilterConfig {
             noise: self.rpf_noise,
             outliers: self.rpf_outliers,
             demodulate: self.rpf_demodulate,
+            sky: self.rpf_sky,
             seed,
         }
     }

@@ -43,6 +43,11 @@
 //!   bright sample). Without it, isolated bright samples survive every pass: their normalised
 //!   colour is far from every neighbour's.
 //! - Non-finite values in a sample are read as 0 (one bad sample does not spread).
+//! - Samples of the sky (`sky`, on; not in the paper, whose scenes are closed): a sample whose
+//!   camera ray left the scene keeps its colour and is no pixel's neighbour, and a pixel's
+//!   statistics and outlier step are over its other samples. Without it, the sky's samples,
+//!   all of one (empty) feature vector, are one neighbourhood that every pass averages, and
+//!   an image that is mostly environment map costs as much as one that is all surfaces.
 //! - Optionally (`demodulate`, not in the paper or the thesis), each sample's colour is
 //!   divided by its base colour (a feature of the vector; channels at or below 0.001 are not
 //!   divided) before the passes and multiplied back, sample by sample, after them: the
@@ -100,6 +105,10 @@ pub struct RpfParams {
     /// [`albedo`](SampleSet::albedo) features), then multiply it back, sample by sample
     /// (not in the paper: texture detail is then no noise to average).
     pub demodulate: bool,
+    /// Samples of the sky (the set's [`sky`](SampleSet::sky)) pass through unfiltered and
+    /// are no pixel's neighbours (not in the paper, whose scenes are closed: the data-driven
+    /// filter's sky pixels, sample by sample).
+    pub sky: bool,
     /// Seed of the neighbourhoods' random draws.
     pub seed: u64,
 }
@@ -111,6 +120,7 @@ impl Default for RpfParams {
             noise: 0.02,
             outliers: true,
             demodulate: false,
+            sky: true,
             seed: 0,
         }
     }
@@ -164,6 +174,9 @@ pub struct SampleSet {
     /// (RGB), for [`RpfParams::demodulate`]; `None` without one.
     pub albedo: Option<usize>,
     pub data: Vec<f32>,
+    /// Which samples are of the sky (their camera ray left the scene), one flag per sample in
+    /// the order of `data`, for [`RpfParams::sky`]; empty when none is.
+    pub sky: Vec<bool>,
 }
 
 impl SampleSet {
@@ -201,6 +214,7 @@ impl SampleSet {
             kinds,
             albedo: None,
             data: vec![0.0; len],
+            sky: Vec::new(),
         })
     }
 
@@ -304,6 +318,14 @@ pub fn filter(
         return Err(FilterError::Size {
             name: "rpf samples",
             len: set.data.len(),
+            width: w,
+            height: h,
+        });
+    }
+    if !set.sky.is_empty() && set.sky.len() != w * h * spp {
+        return Err(FilterError::Size {
+            name: "rpf sky flags",
+            len: set.sky.len(),
             width: w,
             height: h,
         });
@@ -475,14 +497,24 @@ impl Context<'_> {
         let pixel = y * w + x;
         let vector = |i: usize| &self.clean[i * d..(i + 1) * d];
 
-        // 1. The neighbourhood.
+        let sky = |i: usize| self.params.sky && set.sky.get(i).copied().unwrap_or(false);
+
+        // 1. The neighbourhood: the pixel's own samples but the sky's (which pass through),
+        // then its neighbours'.
         let own = pixel * spp..(pixel + 1) * spp;
-        let stats: Vec<(f32, f32)> = (0..nf)
-            .map(|k| mean_std(own.clone().map(|i| vector(i)[f0 + k])))
-            .collect();
         let members = &mut scratch.members;
         members.clear();
-        members.extend(own.map(|i| i as u32));
+        members.extend(own.clone().filter(|&i| !sky(i)).map(|i| i as u32));
+        let lit = members.len();
+        for i in own.clone().filter(|&i| sky(i)) {
+            out[i - own.start] = current[i];
+        }
+        if lit == 0 {
+            return;
+        }
+        let stats: Vec<(f32, f32)> = (0..nf)
+            .map(|k| mean_std(members.iter().map(|&i| vector(i as usize)[f0 + k])))
+            .collect();
         let b = b as usize;
         let half = (b / 2) as i64;
         scratch.taken.clear();
@@ -515,6 +547,9 @@ impl Context<'_> {
                 continue;
             }
             let i = (ny as usize * w + nx as usize) * spp + s;
+            if sky(i) {
+                continue;
+            }
             let v = vector(i);
             let keep = set.kinds.iter().enumerate().all(|(k, kind)| {
                 let (m, sd) = stats[k];
@@ -620,8 +655,9 @@ impl Context<'_> {
         }
         let (colours, normalised) = (&scratch.colours, &scratch.normalised);
         let distance = &mut scratch.distance;
-        for (s, out) in out.iter_mut().enumerate() {
-            // Own sample s is member s.
+        // The pixel's own filtered samples, as (member, sample of the pixel).
+        let lit_own = || (0..lit).map(|j| (j, members[j] as usize - own.start));
+        for (s, o) in lit_own() {
             distance.clear();
             distance.resize(n, 0.0);
             for k in 0..3 {
@@ -653,7 +689,7 @@ impl Context<'_> {
                 total += wgt;
             }
             // total >= 1: the sample's own weight is exp(0).
-            *out = sum.map(|v| v / total);
+            out[o] = sum.map(|v| v / total);
         }
         if self.params.outliers {
             // The technical report's outlier step: a filtered sample more than one standard
@@ -662,18 +698,21 @@ impl Context<'_> {
             // keeps its value and only the spread its samples carry into the next pass
             // shrinks (replacing alone loses the energy of every firefly: measured, 14x the
             // unfiltered MSE on the Cornell box).
-            let (m, sd): (Vec<f32>, Vec<f32>) =
-                (0..3).map(|k| mean_std(out.iter().map(|c| c[k]))).unzip();
+            let (m, sd): (Vec<f32>, Vec<f32>) = (0..3)
+                .map(|k| mean_std(lit_own().map(|(_, o)| out[o][k])))
+                .unzip();
             let mut after = [0.0f32; 3];
-            for c in out.iter_mut() {
+            for (_, o) in lit_own() {
+                let c = &mut out[o];
                 if (0..3).any(|k| (c[k] - m[k]).abs() > sd[k]) {
                     *c = [m[0], m[1], m[2]];
                 }
                 for k in 0..3 {
-                    after[k] += c[k] / spp as f32;
+                    after[k] += c[k] / lit as f32;
                 }
             }
-            for c in out.iter_mut() {
+            for (_, o) in lit_own() {
+                let c = &mut out[o];
                 for k in 0..3 {
                     c[k] += m[k] - after[k];
                 }

@@ -2,7 +2,8 @@
 //! stays constant; noise that comes from a random parameter on a flat region is averaged away
 //! (by at least the factor a box of neighbours gives); a colour edge that the features see is
 //! not blurred across; a colour edge that depends on the screen position alone is kept; a NaN sample
-//! does not spread; the thread count changes nothing; bad parameters and sizes are refused.
+//! does not spread; sky samples pass through and lend nothing to their neighbours; the thread
+//! count changes nothing; bad parameters and sizes are refused.
 
 use std::sync::atomic::AtomicBool;
 
@@ -209,6 +210,77 @@ fn a_colour_edge_that_depends_on_the_screen_position_alone_is_kept() {
             );
         }
     }
+}
+
+#[test]
+fn sky_samples_pass_through_and_lend_nothing_to_their_neighbours() {
+    // Left half sky: no features (as the path tracer leaves a miss's), a pattern of colours
+    // that is detail, not noise; right half a wall with noise from a random parameter.
+    let (size, spp) = (16, 8);
+    let is_sky = |x: usize| x < size / 2;
+    let pattern = |x: usize, y: usize| [0.1 + 0.1 * ((x * 7 + y * 3) % 5) as f32, 0.5, 2.0];
+    let mut set = synthetic(
+        size,
+        spp,
+        |x, y, r| {
+            if is_sky(x) {
+                pattern(x, y)
+            } else {
+                [0.1 + 0.8 * r; 3]
+            }
+        },
+        |_, _| 0.5,
+    );
+    let f = 2 + RANDOM;
+    set.sky = vec![false; size * size * spp];
+    for p in (0..size * size).filter(|p| is_sky(p % size)) {
+        for s in 0..spp {
+            set.sample_mut(p, s)[f..f + 6].fill(0.0);
+            set.sky[p * spp + s] = true;
+        }
+    }
+    let params = small_boxes();
+    let before = set.mean_image();
+    let out = filter(&set, &params, &NO, &|_| {}).unwrap().unwrap();
+    for (p, c) in out.iter().enumerate() {
+        let (x, y) = (p % size, p / size);
+        if is_sky(x) {
+            assert_eq!(*c, before[p], "sky pixel ({x}, {y})");
+        } else {
+            // The wall's mean light is 0.5 and the sky's blue channel 2: a wall pixel that
+            // took the sky's samples would show it.
+            assert!((c[0] - 0.5).abs() < 0.15, "wall pixel ({x}, {y}): {c:?}");
+            assert!((c[2] - c[0]).abs() < 1e-5, "wall pixel ({x}, {y}): {c:?}");
+        }
+    }
+    // The paper's RPF (`sky` off) sees one featureless region and averages some of the
+    // sky's pattern; off, the flags change nothing.
+    let paper = RpfParams {
+        sky: false,
+        ..params.clone()
+    };
+    let blurred = filter(&set, &paper, &NO, &|_| {}).unwrap().unwrap();
+    let sky_change = (0..size * size)
+        .filter(|p| is_sky(p % size))
+        .map(|p| (blurred[p][0] - before[p][0]).abs())
+        .fold(0.0, f32::max);
+    assert!(
+        sky_change > 0.05,
+        "the sky's pattern changed by {sky_change} at most"
+    );
+    let unflagged = SampleSet {
+        sky: Vec::new(),
+        ..set.clone()
+    };
+    assert_eq!(
+        blurred,
+        filter(&unflagged, &paper, &NO, &|_| {}).unwrap().unwrap()
+    );
+    set.sky.pop();
+    assert!(matches!(
+        filter(&set, &params, &NO, &|_| {}),
+        Err(FilterError::Size { .. })
+    ));
 }
 
 #[test]

@@ -8,7 +8,11 @@
 //! the light sample's, without which the noise of soft shadows and direct light depends on no
 //! random parameter RPF sees (the paper counts every random number of the path as a random
 //! parameter; the thesis kept the lens, time and direction); the features of the first two vertices: world position (3) and shading normal
-//! (3) of each, the first hit's base colour (3); the colour (3). Samples are exactly
+//! (3) of each, the first hit's base colour (3); the colour (3). A first bounce that leaves the
+//! scene has its second vertex at a scene's diagonal along its direction, its normal facing
+//! back (the paper is silent; the origin, as before 2026-11-26, made every reflection of the
+//! environment one feature value); a camera ray that leaves it marks the sample as the sky's
+//! ([`SampleSet::sky`]). Samples are exactly
 //! [`crate::renderer`]'s, so the unfiltered mean of the set is `pathlight render`'s image at
 //! the same settings.
 
@@ -63,25 +67,36 @@ pub fn trace(
         camera,
         config,
     };
+    let bounds = world.scene.bounds();
+    let far = if bounds.is_empty() {
+        1.0
+    } else {
+        bounds.diagonal().length().max(1e-3)
+    };
     let stride = set.stride();
+    set.sky = vec![false; w * h * spp];
     set.data
         .par_chunks_mut(w * spp * stride)
+        .zip(set.sky.par_chunks_mut(w * spp))
         .enumerate()
-        .for_each(|(y, row)| {
+        .for_each(|(y, (row, sky))| {
             if cancel.load(Ordering::Relaxed) {
                 return;
             }
-            for (i, v) in row.chunks_exact_mut(stride).enumerate() {
+            for (i, (v, sky)) in row.chunks_exact_mut(stride).zip(sky).enumerate() {
                 let (x, s) = ((i / spp) as u32, (i % spp) as u32);
-                fill(&tracer, x, y as u32, s, v);
+                *sky = fill(&tracer, far, x, y as u32, s, v);
             }
             progress((w * spp) as u64);
         });
     Ok((!cancel.load(Ordering::Relaxed)).then_some(set))
 }
 
-/// Sample `index` of pixel (`x`, `y`), as [`PathTracer::sample_pixel`] traces it, into `v`.
-fn fill(tracer: &PathTracer, x: u32, y: u32, index: u32, v: &mut [f32]) {
+/// Sample `index` of pixel (`x`, `y`), as [`PathTracer::sample_pixel`] traces it, into `v`;
+/// whether it is of the sky (its camera ray hit nothing). A first bounce that leaves the
+/// scene has its second vertex `far` along its direction, facing back (where the environment
+/// it sees is; not the origin, which would make every reflection of the sky one feature).
+fn fill(tracer: &PathTracer, far: f32, x: u32, y: u32, index: u32, v: &mut [f32]) -> bool {
     let CameraSample {
         ray,
         film,
@@ -98,19 +113,25 @@ fn fill(tracer: &PathTracer, x: u32, y: u32, index: u32, v: &mut [f32]) {
     let sample = tracer.trace_from::<false>(ray, first.as_ref(), sampler, rng);
     let p1 = first.as_ref().map_or(Vec3::ZERO, |f| f.surface.p);
     let b = &sample.bounce;
+    let (p2, n2) = if first.is_some() && b.normal == Vec3::ZERO && b.direction != Vec3::ZERO {
+        (p1 + far * b.direction, -b.direction)
+    } else {
+        (b.position, b.normal)
+    };
     let values = [film.x, film.y, lens.x, lens.y]
         .into_iter()
         .chain(b.direction.to_array())
         .chain([light, point.x, point.y])
         .chain(p1.to_array())
         .chain(sample.normal.to_array())
-        .chain(b.position.to_array())
-        .chain(b.normal.to_array())
+        .chain(p2.to_array())
+        .chain(n2.to_array())
         .chain(sample.albedo.to_array())
         .chain(sample.radiance().to_array());
     for (o, value) in v.iter_mut().zip(values) {
         *o = value;
     }
+    first.is_none()
 }
 
 /// Traces the samples and filters them: the filtered image and the unfiltered one (the mean of

@@ -2,11 +2,12 @@
 //! leaves the history alone (the unfiltered image is bit for bit the plain pipeline's), brings
 //! the image closer to a converged reference than the unfiltered one, its feature statistics
 //! see the box's edges and not its flat walls, it does not restart the accumulation, and its
-//! image does not depend on the thread count.
+//! image does not depend on the thread count. RPF's sample vectors mark the sky and put an
+//! escaped bounce's vertex where the environment it sees is.
 
 mod common;
 
-use common::{cornell, in_pool};
+use common::{cornell, in_pool, quad, scene};
 use pathlight_render::denoise::Method;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::{Pipeline, FILTER};
@@ -164,4 +165,76 @@ fn svgf_brings_single_sample_frames_close_to_the_reference() {
         "relMSE {after:.3e} filtered vs {before:.3e}"
     );
     assert_eq!(filtered, run(1));
+}
+
+/// RPF's vectors of a quad under a constant sky, seen from its front: a camera ray that misses
+/// the quad is the sky's; every bounce off the quad leaves the scene, so its second vertex is
+/// a scene's diagonal (here 2 sqrt 2) from the first along the bounce, its normal facing back.
+#[test]
+fn rpf_vectors_mark_the_sky_and_place_escaped_bounces_on_it() {
+    use pathlight_render::camera::Camera;
+    use pathlight_render::rpf::{trace, RANDOM};
+    use std::sync::atomic::AtomicBool;
+
+    let grey = pathlight_scene::Material {
+        metallic: 0.0,
+        ..Default::default()
+    };
+    let from = glam::Vec3::new(0.0, 0.0, 4.0);
+    let world = World::new(
+        scene(
+            vec![quad(0, 1.0, 0.0)],
+            vec![grey],
+            Some(glam::Vec3::ONE),
+            from,
+        ),
+        Default::default(),
+    );
+    let c = Config {
+        width: 24,
+        height: 16,
+        spp: 4,
+        ..Config::default()
+    };
+    let camera = Camera::new(&world.scene.cameras[0], c.width, c.height);
+    let set = trace(&world, &camera, &c, &AtomicBool::new(false), &|_| {})
+        .unwrap()
+        .unwrap();
+    let far = 2.0 * 2f32.sqrt();
+    let f = 2 + RANDOM;
+    let (mut sky, mut ground, mut bounced) = (0, 0, 0);
+    for (i, v) in set.data.chunks_exact(set.stride()).enumerate() {
+        let at = |k: usize| glam::Vec3::from_slice(&v[k..k + 3]);
+        let (direction, p1, p2, n2) = (at(4), at(f), at(f + 6), at(f + 9));
+        if set.sky[i] {
+            sky += 1;
+            assert_eq!((p1, p2), (glam::Vec3::ZERO, glam::Vec3::ZERO), "sample {i}");
+        } else {
+            ground += 1;
+            assert!(
+                p1.x.abs() <= 1.0 + 1e-4 && p1.z.abs() < 1e-4,
+                "sample {i}: {p1}"
+            );
+            if direction == glam::Vec3::ZERO {
+                // No bounce (the path ended at the quad): no second vertex.
+                assert_eq!((p2, n2), (glam::Vec3::ZERO, glam::Vec3::ZERO), "sample {i}");
+                continue;
+            }
+            bounced += 1;
+            assert!(direction.z > 0.0, "sample {i}: bounce {direction}");
+            assert!(
+                (p2 - (p1 + far * direction)).length() < 1e-4,
+                "sample {i}: {p2}"
+            );
+            assert!((n2 + direction).length() < 1e-6, "sample {i}: {n2}");
+        }
+    }
+    // The quad's 2 units at 4 units' distance fill 2 / (2 * 4 tan 20 deg) = 69% of the height
+    // and 46% of the width (aspect 1.5): 31% of the image.
+    let share = ground as f32 / (sky + ground) as f32;
+    assert!(
+        (share - 0.315).abs() < 0.03,
+        "{sky} sky samples, {ground} others"
+    );
+    assert!(bounced > ground * 3 / 4, "{bounced} of {ground} bounced");
 }
