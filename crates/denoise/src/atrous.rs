@@ -427,6 +427,7 @@ impl Pass<'_> {
                 out[k] = c[k];
             }
             let var = s.var[sig] / (s.w[sig] * s.w[sig]);
+            let var = V::select(var.ge(V::splat(MIN_VARIANCE)), var, V::splat(0.0));
             out[3] = V::select(through, self.dy(v + sig, x0, y), var);
             out[4] = c[0] * r + c[1] * gr + c[2] * b;
             let l = L + 3 * sig;
@@ -496,7 +497,7 @@ impl Pass<'_> {
             let distance = [1.0f32, 2.0, 4.0, 5.0, 8.0][d].sqrt() * step as f32;
             *rz = splat(-1.0) / (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc);
         }
-        let (floor, zero) = (splat(-30.0), splat(0.0));
+        let (floor, zero, min) = (splat(-30.0), splat(0.0), splat(MIN_WEIGHT));
         for ky in -R..=R {
             for kx in -R..=R {
                 if kx == 0 && ky == 0 {
@@ -517,11 +518,14 @@ impl Pass<'_> {
                 let cos = self.st::<V>(NX + 2, qx, qy).mul_add(nc[2], cos);
                 let wn = normal_weight_lanes(cos);
                 let kw = kernel * wn;
-                let some = wn.gt(zero);
                 for sig in 0..S {
                     let lq: V = self.dy(lum + sig, qx, qy);
                     let e = (lq - lc[sig]).abs().mul_add(minus_inv[sig], wz);
-                    let wq = V::select(V::and(some, e.gt(floor)), kw * exp_neg(e), zero);
+                    // Every lane's product is worked out, so none may be subnormal: e at
+                    // least -30, kw (with the normal weight's cut) at least 1.6e-15.
+                    let inside = e.gt(floor);
+                    let t = kw * exp_neg(V::select(inside, e, floor));
+                    let wq = V::select(V::and(inside, t.ge(min)), t, zero);
                     s.w[sig] = s.w[sig] + wq;
                     for k in 0..3 {
                         let l: V = self.dy(L + 3 * sig + k, qx, qy);
@@ -535,20 +539,43 @@ impl Pass<'_> {
     }
 }
 
+/// A tap's weight below which it counts for nothing (the centre's is at least 9/64, so a
+/// smaller weight changes no sum by more than its rounding). Products of smaller weights
+/// (with the light, squared with the variance) could be subnormal numbers, whose arithmetic
+/// is slow on many processors (a pass took 5-8x its time on an Intel Xeon of these machines).
+pub const MIN_WEIGHT: f32 = 1e-10;
+
+/// A luminance variance below which it is 0 (its root, 1e-8, is nothing beside the luminance
+/// test's 1e-4): with [`MIN_WEIGHT`], no product of the passes is subnormal.
+pub const MIN_VARIANCE: f32 = 1e-16;
+
+/// `variance`, or 0 below [`MIN_VARIANCE`] (and for NaN).
+#[inline(always)]
+pub fn flush_variance(variance: f32) -> f32 {
+    if variance >= MIN_VARIANCE {
+        variance
+    } else {
+        0.0
+    }
+}
+
+/// Below this cosine the normal weight is 0 (`0.8^128` is 4e-13, under [`MIN_WEIGHT`]).
+const MIN_COSINE: f32 = 0.8;
+
 /// [`normal_weight`] in lanes.
 #[inline(always)]
 fn normal_weight_lanes<V: F32xN>(cos: V) -> V {
-    let mut w = V::select(cos.ge(V::splat(0.6)), cos, V::splat(0.0));
+    let mut w = V::select(cos.ge(V::splat(MIN_COSINE)), cos, V::splat(0.0));
     for _ in 0..7 {
         w = w * w;
     }
     w
 }
 
-/// `max(0, cos)^128` by repeated squaring; 0 below a cosine of 0.6 (and for NaN).
+/// `max(0, cos)^128` by repeated squaring; 0 below a cosine of [`MIN_COSINE`] (and for NaN).
 #[inline(always)]
 pub fn normal_weight(cos: f32) -> f32 {
-    let mut w = if cos >= 0.6 { cos } else { 0.0 };
+    let mut w = if cos >= MIN_COSINE { cos } else { 0.0 };
     for _ in 0..7 {
         w *= w;
     }

@@ -43,7 +43,9 @@ use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::atrous::{normal_weight, spline, Planes, Statics, BLUR, MAX_PAD};
+use crate::atrous::{
+    flush_variance, normal_weight, spline, Planes, Statics, BLUR, MAX_PAD, MIN_WEIGHT,
+};
 use crate::exp::exp_neg;
 use crate::features::demodulator;
 use crate::FilterError;
@@ -359,7 +361,11 @@ impl Svgf {
                             let wq = if q == i {
                                 kernel
                             } else if wn > 0.0 && e > -30.0 {
-                                kernel * wn * exp_neg(e)
+                                let t = kernel * wn * exp_neg(e);
+                                if t < MIN_WEIGHT {
+                                    continue;
+                                }
+                                t
                             } else {
                                 // Below e^-30 of the centre's weight: nothing, and no
                                 // subnormal arithmetic (which is slow).
@@ -373,7 +379,7 @@ impl Svgf {
                 }
                 for s in 0..signals {
                     out_l[s] = acc[s] / sum_w[s];
-                    out_v[s] = acc_v[s] / (sum_w[s] * sum_w[s]);
+                    out_v[s] = flush_variance(acc_v[s] / (sum_w[s] * sum_w[s]));
                 }
                 out_l[signals..].copy_from_slice(&light[i][signals..]);
                 out_v[signals..].copy_from_slice(&variance[i][signals..]);
@@ -412,7 +418,10 @@ impl Moments {
     /// The luminance variance of each signal.
     fn variance(&self) -> [f32; 2] {
         let m = self.m;
-        [(m[1] - m[0] * m[0]).max(0.0), (m[3] - m[2] * m[2]).max(0.0)]
+        [
+            flush_variance(m[1] - m[0] * m[0]),
+            flush_variance(m[3] - m[2] * m[2]),
+        ]
     }
 }
 
