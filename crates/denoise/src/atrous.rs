@@ -542,7 +542,8 @@ impl Pass<'_> {
 /// A tap's weight below which it counts for nothing (the centre's is at least 9/64, so a
 /// smaller weight changes no sum by more than its rounding). Products of smaller weights
 /// (with the light, squared with the variance) could be subnormal numbers, whose arithmetic
-/// is slow on many processors (a pass took 5-8x its time on an Intel Xeon of these machines).
+/// is slow on many processors (a pass took up to 6x its time on an Intel Xeon of these
+/// machines).
 pub const MIN_WEIGHT: f32 = 1e-10;
 
 /// A luminance variance below which it is 0 (its root, 1e-8, is nothing beside the luminance

@@ -32,6 +32,10 @@
 //!   (capped at 32), as the paper.
 //! - The sky and light sources (`emitter`) pass through with this frame's light and are not
 //!   filtered with their neighbours.
+//! - A tap's weight under 1e-10 (the centre's is at least 9/64) is 0, and so is a luminance
+//!   variance under 1e-16 and the normal weight under a cosine of 0.8: no product is then a
+//!   subnormal number, whose arithmetic is slow on Intel's cores (the images are the same to
+//!   rounding).
 //!
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
 //! (holes of 32 pixels), the temporal pass, the variance and the depth gradient worked out as
