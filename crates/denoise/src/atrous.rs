@@ -427,8 +427,7 @@ impl Pass<'_> {
                 out[k] = c[k];
             }
             let var = s.var[sig] / (s.w[sig] * s.w[sig]);
-            let var = V::select(var.ge(V::splat(MIN_VARIANCE)), var, V::splat(0.0));
-            out[3] = V::select(through, self.dy(v + sig, x0, y), var);
+            out[3] = V::select(through, self.dy(v + sig, x0, y), flush_variance_lanes(var));
             out[4] = c[0] * r + c[1] * gr + c[2] * b;
             let l = L + 3 * sig;
             for (value, p) in out.into_iter().zip([l, l + 1, l + 2, v + sig, lum + sig]) {
@@ -558,6 +557,12 @@ pub fn flush_variance(variance: f32) -> f32 {
     } else {
         0.0
     }
+}
+
+/// [`flush_variance`] in lanes.
+#[inline(always)]
+fn flush_variance_lanes<V: F32xN>(variance: V) -> V {
+    V::select(variance.ge(V::splat(MIN_VARIANCE)), variance, V::splat(0.0))
 }
 
 /// Below this cosine the normal weight is 0 (`0.8^128` is 4e-13, under [`MIN_WEIGHT`]).

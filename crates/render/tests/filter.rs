@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{cornell, in_pool, quad, scene};
+use common::{cornell, in_pool, quad, scene, world};
 use pathlight_render::denoise::Method;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::{Pipeline, FILTER};
@@ -181,15 +181,12 @@ fn rpf_vectors_mark_the_sky_and_place_escaped_bounces_on_it() {
         ..Default::default()
     };
     let from = glam::Vec3::new(0.0, 0.0, 4.0);
-    let world = World::new(
-        scene(
-            vec![quad(0, 1.0, 0.0)],
-            vec![grey],
-            Some(glam::Vec3::ONE),
-            from,
-        ),
-        Default::default(),
-    );
+    let world = world(scene(
+        vec![quad(0, 1.0, 0.0)],
+        vec![grey],
+        Some(glam::Vec3::ONE),
+        from,
+    ));
     let c = Config {
         width: 24,
         height: 16,
