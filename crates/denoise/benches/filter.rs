@@ -9,7 +9,9 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
 use pathlight_core::rng::Rng;
-use pathlight_denoise::{DataDriven, Features, FilterConfig, Method, Svgf, SvgfFrame, SvgfParams};
+use pathlight_denoise::{
+    DataDriven, ErrorPair, Features, FilterConfig, Method, Svgf, SvgfFrame, SvgfParams,
+};
 
 fn vec3(rng: &mut Rng, scale: f32) -> Vec3 {
     Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale
@@ -109,8 +111,19 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
             });
         }
     }
-    // The narrower lanes, where the processor has wider ones (21x21 with holes only).
+    // The narrower lanes, where the processor has wider ones, and the errors' product in the
+    // colour test (21x21 with holes only).
     if kernels.contains(&21) {
+        let config = FilterConfig {
+            method: Method::DataDriven,
+            kernel: 21,
+            holes: true,
+            error_pair: ErrorPair::Product,
+            ..FilterConfig::default()
+        };
+        group.bench_function("kernel 21 holes product", |b| {
+            b.iter(|| filter.filter(&features, &config, &mut out).unwrap())
+        });
         for lanes in ["avx2", "portable"] {
             let config = FilterConfig {
                 method: Method::DataDriven,

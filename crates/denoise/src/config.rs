@@ -8,10 +8,12 @@
 //!   The thesis compares scene units with sigma 1.75; its scenes (a Cornell box seen from about
 //!   3.5 units) make that about 0.5 of the depth, the default here. `depth_units = "scene"`
 //!   with `sigma_depth = 1.75` is the thesis's test.
-//! - **Colour** differences squared are divided by the product of the centre's and the
-//!   neighbour's standard errors of the mean (`colour_units = "variance"`, sigma 4 for direct
-//!   and indirect light): the test follows the noise, as SVGF's luminance test does, so the
-//!   filter smooths noise and keeps what the samples agree on, and fades as they accumulate.
+//! - **Colour** differences squared are divided by the sum of the squares of the centre's and
+//!   the neighbour's standard errors of the mean, the variance of their difference
+//!   (`colour_units = "variance"`, `error_pair = "sum"`, sigma 1.5 for direct and indirect
+//!   light; `error_pair = "product"`, their product, was the first form, with sigma 4): the
+//!   test follows the noise, as SVGF's luminance test does, so the filter smooths noise and
+//!   keeps what the samples agree on, and fades as they accumulate.
 //!   The thesis's test on radiance as it is (`colour_units = "linear"`, sigmas 0.75 and 0.5)
 //!   never converges: its error stops falling while the unfiltered image's goes on (measured,
 //!   BENCHMARKS.md "Seed 001": at 32 spp 0.68-2.9x the unfiltered CIELUV MSE, against
@@ -19,6 +21,8 @@
 //!   `(1 + L_p)(1 + L_q)`, the luminances of the two pixels' light (dividing by the centre's
 //!   alone blurred the Cornell box's light into its ceiling).
 //! - **Demodulation** (`demodulate`, on): the light is filtered divided by the albedo.
+//! - **The two pixels' errors** (`error_pair`, `sum`): added in squares or multiplied
+//!   ([`crate::data_driven`]).
 //! - **Blurred standard errors** (`error_blur`, off): in variance units, each pixel's
 //!   standard error taken over its 3x3 neighbourhood's ([`crate::data_driven`]).
 //! - **Variance scales** `s_f` (depth, normal, texture, direction, texture2) are not published;
@@ -72,12 +76,28 @@ pub enum ColourUnits {
     Relative,
     /// Radiance as it is (the thesis).
     Linear,
-    /// Squared differences over the product of the centre's and the neighbour's standard
-    /// errors of the mean ([`crate::Features::light_variance`], or the 3x3 neighbourhood's
-    /// where unknown): the test follows the noise, so the filter fades as samples accumulate
-    /// (SVGF's luminance test in this filter's form; sigmas of 2 to 4 suit it).
+    /// Squared differences over the centre's and the neighbour's standard errors of the mean
+    /// ([`crate::Features::light_variance`], or the 3x3 neighbourhood's
+    /// where unknown), combined as [`ErrorPair`] says: the test follows the noise, so the
+    /// filter fades as samples accumulate (SVGF's luminance test in this filter's form;
+    /// sigmas of 1.5 to 2 suit the sum, 2 to 4 the product).
     #[default]
     Variance,
+}
+
+/// How the centre's and the neighbour's standard errors of the mean, `e_p` and `e_q`, scale a
+/// squared colour difference (`colour_units = "variance"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ErrorPair {
+    /// Over `e_p^2 + e_q^2`, the variance of the difference of the two means: a pixel whose
+    /// samples hold a firefly (a large error) takes its neighbours' light and lends them its
+    /// own.
+    #[default]
+    Sum,
+    /// Over `e_p e_q` (this filter's first form): a pixel whose samples agree is a wall to a
+    /// noisy neighbour, and a firefly stays where it fell.
+    Product,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -98,7 +118,7 @@ pub struct FilterConfig {
     /// per tap).
     pub svgf_split: bool,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
-    /// errors by default; the thesis's 0.75 is in radiance).
+    /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
     /// Data-driven: sigma of the indirect light's colour test (the thesis's 0.5).
     pub sigma_indirect: f32,
@@ -122,6 +142,9 @@ pub struct FilterConfig {
     /// neighbourhood (the root of the mean of the squares), as SVGF blurs its variance: a few
     /// samples' variance is itself noisy (not in the thesis).
     pub error_blur: bool,
+    /// Data-driven, variance units: how the two pixels' standard errors combine (not in the
+    /// thesis).
+    pub error_pair: ErrorPair,
     /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
     pub rpf_boxes: Vec<u32>,
     /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
@@ -146,8 +169,8 @@ impl Default for FilterConfig {
             atrous_iterations: 5,
             atrous_kernel: 5,
             svgf_split: true,
-            sigma_direct: 4.0,
-            sigma_indirect: 4.0,
+            sigma_direct: 1.5,
+            sigma_indirect: 1.5,
             sigma_depth: 0.5,
             sigma_normal: 0.25,
             sigma_texture: 0.1,
@@ -158,6 +181,7 @@ impl Default for FilterConfig {
             colour_units: ColourUnits::Variance,
             demodulate: true,
             error_blur: false,
+            error_pair: ErrorPair::Sum,
             rpf_boxes: vec![55, 35, 17, 7],
             rpf_noise: 0.02,
             rpf_outliers: true,

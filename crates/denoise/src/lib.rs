@@ -19,7 +19,7 @@ pub mod rpf;
 mod simd;
 pub mod svgf;
 
-pub use config::{ColourUnits, DepthUnits, FilterConfig, Method};
+pub use config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig, Method};
 pub use data_driven::DataDriven;
 pub use features::Features;
 pub use svgf::{Svgf, SvgfFrame, SvgfParams};

@@ -6,7 +6,9 @@
 //! buffers are refused.
 
 use glam::Vec3;
-use pathlight_denoise::{ColourUnits, DataDriven, Features, FilterConfig, FilterError, Method};
+use pathlight_denoise::{
+    ColourUnits, DataDriven, ErrorPair, Features, FilterConfig, FilterError, Method,
+};
 
 /// A frame's buffers, owned.
 #[derive(Clone)]
@@ -196,7 +198,8 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
             let c_texture2 = low(k(c.sigma_texture2), v[4] as f64, s[4]);
             let lum3 = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
             let lum = |i: usize| lum3(direct[i] + indirect[i]).max(0.0);
-            // The colour differences' scales of pixel i: direct and indirect.
+            // The colour differences' scales of pixel i, direct and indirect: a factor, or
+            // the standard error of its mean light.
             let scales = |i: usize| -> [f64; 2] {
                 match c.colour_units {
                     ColourUnits::Linear => [1.0; 2],
@@ -204,9 +207,17 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                     ColourUnits::Variance => {
                         let a = lum3(albedo(i));
                         let floor = 0.01 * (1.0 + lum(i));
-                        f.light_variance[i].map(|v| 1.0 / ((v as f64 / (a * a)).sqrt().max(floor)))
+                        f.light_variance[i].map(|v| (v as f64 / (a * a)).sqrt().max(floor))
                     }
                 }
+            };
+            // A squared colour difference's coefficient between pixels p and q.
+            let colour = |sigma: f32, sp: f64, sq: f64| match c.colour_units {
+                ColourUnits::Variance => match c.error_pair {
+                    ErrorPair::Sum => k(sigma) / (sp * sp + sq * sq),
+                    ErrorPair::Product => k(sigma) / (sp * sq),
+                },
+                _ => k(sigma) * sp * sq,
             };
             let (mut wd_sum, mut wi_sum) = (0.0, 0.0);
             let (mut d_sum, mut i_sum) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
@@ -226,8 +237,8 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                         + c_texture * sq(f.albedo[q], f.albedo[p]);
                     let (sp, sq_) = (scales(p), scales(q));
                     let (c_direct, c_indirect) = (
-                        k(c.sigma_direct) * sp[0] * sq_[0],
-                        k(c.sigma_indirect) * sp[1] * sq_[1],
+                        colour(c.sigma_direct, sp[0], sq_[0]),
+                        colour(c.sigma_indirect, sp[1], sq_[1]),
                     );
                     let wd = (-(c_direct * sq(direct[q], direct[p]) + feat)).exp();
                     let wi = (-(c_indirect * sq(indirect[q], indirect[p])
@@ -251,20 +262,25 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
     // A width that is not a multiple of the 16 lanes, windows cut by every border; every
     // kind of lanes in turn (those this processor lacks fall back to narrower ones).
     let f = busy(37, 23, 7);
-    for (kernel, holes, demodulate, colour_units, lanes) in [
-        (1, false, true, ColourUnits::Relative, "widest"),
-        (5, false, true, ColourUnits::Variance, "avx2"),
-        (9, true, false, ColourUnits::Linear, "portable"),
-        (21, false, true, ColourUnits::Relative, "widest"),
-        (21, true, false, ColourUnits::Variance, "avx2"),
-        (21, false, true, ColourUnits::Variance, "portable"),
-        (21, false, true, ColourUnits::Variance, "widest"),
+    let (sum, product) = (ErrorPair::Sum, ErrorPair::Product);
+    for (kernel, holes, demodulate, colour_units, error_pair, lanes) in [
+        (1, false, true, ColourUnits::Relative, sum, "widest"),
+        (5, false, true, ColourUnits::Variance, sum, "avx2"),
+        (5, false, true, ColourUnits::Variance, product, "avx2"),
+        (9, true, false, ColourUnits::Linear, sum, "portable"),
+        (21, false, true, ColourUnits::Relative, sum, "widest"),
+        (21, true, false, ColourUnits::Variance, sum, "avx2"),
+        (21, false, true, ColourUnits::Variance, sum, "portable"),
+        (21, false, true, ColourUnits::Variance, product, "portable"),
+        (21, false, true, ColourUnits::Variance, sum, "widest"),
+        (21, true, true, ColourUnits::Variance, product, "widest"),
     ] {
         let c = FilterConfig {
             kernel,
             holes,
             demodulate,
             colour_units,
+            error_pair,
             ..data_driven()
         };
         let (got, want) = (f.filter_with(&c, lanes), reference(&f, &c));
@@ -274,7 +290,8 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
         }
         assert!(
             worst < 1e-4,
-            "kernel {kernel} holes {holes} demodulate {demodulate} lanes {lanes}: {worst}"
+            "kernel {kernel} holes {holes} demodulate {demodulate} {error_pair:?} lanes {lanes}: \
+             {worst}"
         );
         // The filter does something here (but for the 1x1 window).
         let moved = got
@@ -604,9 +621,10 @@ fn blurred_errors_filter_a_pixel_whose_few_samples_agreed() {
     // A flat wall at 0.5 whose pixels' means have a standard error of 1 (demodulated), but one
     // pixel whose few samples happened to agree (variance 0) and which sits at 2 (3 above the
     // rest once demodulated).
-    // Its own error is the floor: the colour test makes it a wall to every neighbour, and it
-    // stays as it is. With `error_blur` its error is its neighbourhood's (the root of the mean
-    // of the squares: sqrt(8/9)), and the window averages it with the wall like any pixel.
+    // With the errors' product in the colour test its own error (the floor) makes it a wall
+    // to every neighbour, and it stays as it is. With `error_blur` its error is its
+    // neighbourhood's (the root of the mean of the squares: sqrt(8/9)), and the window
+    // averages it with the wall like any pixel.
     let (w, h) = (33, 33);
     let mut f = Frame::flat(w, h, Vec3::splat(0.5), Vec3::ZERO);
     // The variance of the mean of the (not demodulated) luminance: 0.5^2 for an error of 1
@@ -617,6 +635,7 @@ fn blurred_errors_filter_a_pixel_whose_few_samples_agreed() {
     f.light_variance[centre] = [0.0, 0.0];
     let variance = FilterConfig {
         colour_units: ColourUnits::Variance,
+        error_pair: ErrorPair::Product,
         sigma_direct: 3.0,
         sigma_indirect: 3.0,
         ..data_driven()
@@ -640,4 +659,56 @@ fn blurred_errors_filter_a_pixel_whose_few_samples_agreed() {
     let far = 4 * w + 4;
     assert!((plain[far] - Vec3::splat(0.5)).abs().max_element() < 1e-5);
     assert!((blurred[far] - Vec3::splat(0.5)).abs().max_element() < 1e-5);
+}
+
+#[test]
+fn a_firefly_joins_its_wall_when_the_errors_add() {
+    // A flat grey wall at 0.5 (1 demodulated by its albedo of 0.5) whose pixels' means have a
+    // standard error of 0.1 (demodulated), and one pixel at 2 whose samples held a firefly:
+    // a standard error of 3. Demodulated it is 3 above the wall in each channel, a squared
+    // difference of 27. Over the sum of the squared errors (9.01) and 2 sigma^2 (4.5) each
+    // neighbour weighs e^-0.67 and the 440 of them pull it to the wall; over their product
+    // (0.3) the weight is e^-20: no neighbour counts and the firefly stays.
+    let (w, h) = (33, 33);
+    let mut f = Frame::flat(w, h, Vec3::splat(0.5), Vec3::ZERO);
+    // Variances of the means of the luminance before demodulation (errors 0.05 and 1.5).
+    f.light_variance.fill([0.05 * 0.05, 0.0]);
+    let centre = 16 * w + 16;
+    f.direct[centre] = Vec3::splat(2.0);
+    f.light_variance[centre] = [1.5 * 1.5, 0.0];
+    let config = |error_pair| FilterConfig {
+        colour_units: ColourUnits::Variance,
+        error_pair,
+        sigma_direct: 1.5,
+        sigma_indirect: 1.5,
+        ..data_driven()
+    };
+    let (sum, product) = (
+        f.filter(&config(ErrorPair::Sum)),
+        f.filter(&config(ErrorPair::Product)),
+    );
+    let weight = (-27.0f32 / (4.5 * 9.01)).exp();
+    let want = 0.5 * (4.0 + 440.0 * weight) / (1.0 + 440.0 * weight);
+    assert!(
+        (sum[centre].x - want).abs() < 1e-3,
+        "{} vs {want}",
+        sum[centre]
+    );
+    assert!(sum[centre].x < 0.51, "{}", sum[centre]);
+    assert!(
+        (product[centre].x - 2.0).abs() < 1e-3,
+        "{}",
+        product[centre]
+    );
+    // Its neighbours take a little of it with the sum (its 3 at its weight among 441), none
+    // with the product; the wall outside its window is the wall.
+    let next = centre + 1;
+    let lent = sum[next].x - 0.5;
+    let most = 0.5 * 3.0 * weight / (440.0 + weight);
+    assert!(lent > 0.5 * most && lent < most + 1e-5, "{lent} vs {most}");
+    assert!((product[next].x - 0.5).abs() < 1e-5, "{}", product[next]);
+    let far = 2 * w + 2;
+    for out in [&sum, &product] {
+        assert!((out[far] - Vec3::splat(0.5)).abs().max_element() < 1e-5);
+    }
 }

@@ -4,7 +4,7 @@
 use eframe::egui;
 use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
-use pathlight_render::denoise::{ColourUnits, DepthUnits, Method};
+use pathlight_render::denoise::{ColourUnits, DepthUnits, ErrorPair, Method};
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
@@ -442,6 +442,13 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             );
             ui.radio_value(&mut f.colour_units, ColourUnits::Relative, "relative");
             ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "linear (thesis)");
+        });
+        ui.add_enabled_ui(f.colour_units == ColourUnits::Variance, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("two pixels' errors");
+                ui.radio_value(&mut f.error_pair, ErrorPair::Sum, "added in squares");
+                ui.radio_value(&mut f.error_pair, ErrorPair::Product, "multiplied");
+            });
         });
         ui.checkbox(&mut f.demodulate, "demodulate by the albedo");
         ui.add_enabled(
