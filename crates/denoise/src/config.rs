@@ -20,6 +20,12 @@
 //!   0.12-1.2x in variance units). `colour_units = "relative"` divides by
 //!   `(1 + L_p)(1 + L_q)`, the luminances of the two pixels' light (dividing by the centre's
 //!   alone blurred the Cornell box's light into its ceiling).
+//! - **Texture2** (`texture2_test`, off): the indirect light's test on the albedo at the
+//!   second hit is not made. Its value at a pixel is the mean of a few random bounces'
+//!   albedos, noise at the sample counts the filter runs at, and with sigma 0.1 the test
+//!   refused neighbours at random (measured: with it the interior's CIELUV MSE at 8 spp is
+//!   0.30x the unfiltered image's, without 0.14x; BENCHMARKS.md, "Seed 001"). On, it is the
+//!   thesis's, with `sigma_texture2`.
 //! - **Demodulation** (`demodulate`, on): the light is filtered divided by the albedo.
 //! - **The two pixels' errors** (`error_pair`, `sum`): added in squares or multiplied
 //!   ([`crate::data_driven`]).
@@ -129,6 +135,10 @@ pub struct FilterConfig {
     /// (the thesis's Eq. 6.19), so it cancels in the normalisation; kept for completeness.
     pub sigma_direction: f32,
     pub sigma_texture2: f32,
+    /// Data-driven: the indirect light's test on texture2, the albedo at the second hit
+    /// (the thesis's; off by default: over a few samples the mean of a random bounce's
+    /// albedo is noise, and the test refuses neighbours at random).
+    pub texture2_test: bool,
     /// Variance scales `s_f` of depth, normal, texture, direction and texture2: a feature's
     /// variance times its scale (clamped to 1) lowers its coefficient (more blur where the
     /// feature itself is noisy). 0 ignores the variance.
@@ -176,6 +186,7 @@ impl Default for FilterConfig {
             sigma_texture: 0.1,
             sigma_direction: 0.75,
             sigma_texture2: 0.1,
+            texture2_test: false,
             variance_scale: [1.0; 5],
             depth_units: DepthUnits::Relative,
             colour_units: ColourUnits::Variance,

@@ -34,6 +34,9 @@
 //!   multiplied by it after, as SVGF does, so that the filter smooths the illumination and not
 //!   the texture. Off, the thesis's filter blurs texture detail its texture test lets through
 //!   (measured on textured scenes: BENCHMARKS.md, "Seed 001").
+//! - **The texture2 test** (Eq. 6.21's `exp(-c_f,texture2 |dT2|^2)`) is made only with
+//!   `texture2_test` (off by default: over a few samples the second hit's albedo is noise;
+//!   [`crate::config`]).
 //! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
 //!   and cancels in the normalisation, so it is not computed.
 //! - Depth and colour differences are measured as [`crate::config`] says (the thesis's units
@@ -520,7 +523,11 @@ impl Scales {
             depth: k(c.sigma_depth),
             normal: k(c.sigma_normal),
             texture: k(c.sigma_texture),
-            texture2: k(c.sigma_texture2),
+            texture2: if c.texture2_test {
+                k(c.sigma_texture2)
+            } else {
+                0.0
+            },
             variance: c.variance_scale,
             relative_depth: c.depth_units == DepthUnits::Relative,
             demodulate: c.demodulate,

@@ -195,7 +195,11 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
             );
             let c_normal = low(k(c.sigma_normal), v[1] as f64, s[1]);
             let c_texture = low(k(c.sigma_texture), v[2] as f64, s[2]);
-            let c_texture2 = low(k(c.sigma_texture2), v[4] as f64, s[4]);
+            let c_texture2 = if c.texture2_test {
+                low(k(c.sigma_texture2), v[4] as f64, s[4])
+            } else {
+                0.0
+            };
             let lum3 = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
             let lum = |i: usize| lum3(direct[i] + indirect[i]).max(0.0);
             // The colour differences' scales of pixel i, direct and indirect: a factor, or
@@ -263,17 +267,49 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
     // kind of lanes in turn (those this processor lacks fall back to narrower ones).
     let f = busy(37, 23, 7);
     let (sum, product) = (ErrorPair::Sum, ErrorPair::Product);
-    for (kernel, holes, demodulate, colour_units, error_pair, lanes) in [
-        (1, false, true, ColourUnits::Relative, sum, "widest"),
-        (5, false, true, ColourUnits::Variance, sum, "avx2"),
-        (5, false, true, ColourUnits::Variance, product, "avx2"),
-        (9, true, false, ColourUnits::Linear, sum, "portable"),
-        (21, false, true, ColourUnits::Relative, sum, "widest"),
-        (21, true, false, ColourUnits::Variance, sum, "avx2"),
-        (21, false, true, ColourUnits::Variance, sum, "portable"),
-        (21, false, true, ColourUnits::Variance, product, "portable"),
-        (21, false, true, ColourUnits::Variance, sum, "widest"),
-        (21, true, true, ColourUnits::Variance, product, "widest"),
+    for (kernel, holes, demodulate, colour_units, error_pair, texture2_test, lanes) in [
+        (1, false, true, ColourUnits::Relative, sum, false, "widest"),
+        (5, false, true, ColourUnits::Variance, sum, true, "avx2"),
+        (
+            5,
+            false,
+            true,
+            ColourUnits::Variance,
+            product,
+            false,
+            "avx2",
+        ),
+        (9, true, false, ColourUnits::Linear, sum, true, "portable"),
+        (21, false, true, ColourUnits::Relative, sum, true, "widest"),
+        (21, true, false, ColourUnits::Variance, sum, false, "avx2"),
+        (
+            21,
+            false,
+            true,
+            ColourUnits::Variance,
+            sum,
+            false,
+            "portable",
+        ),
+        (
+            21,
+            false,
+            true,
+            ColourUnits::Variance,
+            product,
+            true,
+            "portable",
+        ),
+        (21, false, true, ColourUnits::Variance, sum, false, "widest"),
+        (
+            21,
+            true,
+            true,
+            ColourUnits::Variance,
+            product,
+            true,
+            "widest",
+        ),
     ] {
         let c = FilterConfig {
             kernel,
@@ -281,6 +317,7 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
             demodulate,
             colour_units,
             error_pair,
+            texture2_test,
             ..data_driven()
         };
         let (got, want) = (f.filter_with(&c, lanes), reference(&f, &c));
@@ -290,8 +327,8 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
         }
         assert!(
             worst < 1e-4,
-            "kernel {kernel} holes {holes} demodulate {demodulate} {error_pair:?} lanes {lanes}: \
-             {worst}"
+            "kernel {kernel} holes {holes} demodulate {demodulate} {error_pair:?} texture2 \
+             {texture2_test} lanes {lanes}: {worst}"
         );
         // The filter does something here (but for the 1x1 window).
         let moved = got
@@ -711,4 +748,42 @@ fn a_firefly_joins_its_wall_when_the_errors_add() {
     for out in [&sum, &product] {
         assert!((out[far] - Vec3::splat(0.5)).abs().max_element() < 1e-5);
     }
+}
+
+#[test]
+fn texture2_noise_refuses_neighbours_only_with_the_thesis_test() {
+    // A flat wall whose indirect light is 0.5 plus noise of deviation 0.05 and whose texture2
+    // (the mean albedo of a pixel's few second hits) is uniform noise in [0, 1]^3. Without
+    // the texture2 test the 21x21 window averages 441 pixels: the noise falls to about
+    // 0.05 / 21. With the thesis's test (sigma 0.1) a neighbour's weight is
+    // exp(-50 |dT2|^2), on average (sqrt(pi / 50) - 1 / 50)^3 = 0.012 for the difference of
+    // two uniform colours: the window counts about 1 + 441 x 0.012 = 6.4 pixels' worth and
+    // the noise falls only to about 0.05 / 2.5.
+    let (w, h) = (41, 41);
+    let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::splat(0.5));
+    let mut rng = Rng::new(3);
+    for i in 0..w * h {
+        f.indirect[i] += Vec3::splat(0.05 * rng.normal() as f32);
+        f.texture2[i] = rng.vec3(0.0, 1.0);
+    }
+    // Spread of the 21x21 block of pixels whose windows lie inside the image.
+    let spread = |img: &[Vec3]| {
+        let v: Vec<f32> = (10..31)
+            .flat_map(|y| (10..31).map(move |x| img[y * w + x].x))
+            .collect();
+        let m = v.iter().sum::<f32>() / v.len() as f32;
+        (v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32).sqrt()
+    };
+    let before = spread(&f.indirect);
+    let without = spread(&f.filter(&data_driven()));
+    let with = spread(&f.filter(&FilterConfig {
+        texture2_test: true,
+        ..data_driven()
+    }));
+    assert!((before - 0.05).abs() < 0.005, "{before}");
+    assert!(without < 2.0 * 0.05 / 21.0, "without the test: {without}");
+    assert!(
+        with > before / 4.0 && with < before / 2.0,
+        "with the test: {with} against {before}"
+    );
 }

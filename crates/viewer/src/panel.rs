@@ -414,7 +414,10 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         sigma(ui, &mut f.sigma_depth, "sigma depth");
         sigma(ui, &mut f.sigma_normal, "sigma normal");
         sigma(ui, &mut f.sigma_texture, "sigma texture");
-        sigma(ui, &mut f.sigma_texture2, "sigma texture2");
+        ui.checkbox(&mut f.texture2_test, "texture2 test (thesis)");
+        ui.add_enabled_ui(f.texture2_test, |ui| {
+            sigma(ui, &mut f.sigma_texture2, "sigma texture2");
+        });
         for (i, name) in ["depth", "normal", "texture", "direction", "texture2"]
             .into_iter()
             .enumerate()
