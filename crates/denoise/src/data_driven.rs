@@ -630,10 +630,11 @@ impl Row<'_> {
         let width = self.layout.width;
         for x0 in (0..width).step_by(V::N) {
             let centre = self.centre(x0);
-            let sums = if self.scales.sum {
-                self.sums::<V, true>(x0, &centre)
-            } else {
-                self.sums::<V, false>(x0, &centre)
+            let sums = match (self.scales.sum, self.scales.texture2 > 0.0) {
+                (true, false) => self.sums::<V, true, false>(x0, &centre),
+                (true, true) => self.sums::<V, true, true>(x0, &centre),
+                (false, false) => self.sums::<V, false, false>(x0, &centre),
+                (false, true) => self.sums::<V, false, true>(x0, &centre),
             };
             // The weighted means, in lanes.
             let mut light = [[0.0; LANES]; 3];
@@ -723,7 +724,11 @@ impl Row<'_> {
     /// The weighted sums over the window of each centre of the block. (No closures here:
     /// see `simd::exp_neg`.)
     #[inline(always)]
-    fn sums<V: F32xN, const SUM: bool>(&self, x0: usize, centre: &Centre<Lanes>) -> Sums<V> {
+    fn sums<V: F32xN, const SUM: bool, const TEXTURE2: bool>(
+        &self,
+        x0: usize,
+        centre: &Centre<Lanes>,
+    ) -> Sums<V> {
         let l = &self.layout;
         // The window's top-left corner of the first centre.
         let corner = l.at(x0, self.y) - l.radius * l.row - l.radius;
@@ -763,7 +768,12 @@ impl Row<'_> {
                 (c.c_direct * v[SCALE_D], c.c_indirect * v[SCALE_I])
             };
             let wd = v[VALID] * exp_neg(minus * term(three(F0), c.direct, kd, features));
-            let indirect = term(three(T2), c.texture2, c.c_texture2, features);
+            // Without the texture2 test its planes are not read (the loads are dead code).
+            let indirect = if TEXTURE2 {
+                term(three(T2), c.texture2, c.c_texture2, features)
+            } else {
+                features
+            };
             let wi = v[VALID] * exp_neg(minus * term(three(F1), c.indirect, ki, indirect));
             s.direct_w = s.direct_w + wd;
             s.indirect_w = s.indirect_w + wi;
