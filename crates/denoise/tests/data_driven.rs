@@ -116,6 +116,21 @@ impl Rng {
     }
 }
 
+/// The standard deviation of the red channel over the pixels `xs` x `ys` of a `width`-wide
+/// image.
+fn spread(
+    img: &[Vec3],
+    width: usize,
+    xs: std::ops::Range<usize>,
+    ys: std::ops::Range<usize>,
+) -> f32 {
+    let v: Vec<f32> = ys
+        .flat_map(|y| xs.clone().map(move |x| img[y * width + x].x))
+        .collect();
+    let m = v.iter().sum::<f32>() / v.len() as f32;
+    (v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32).sqrt()
+}
+
 /// A frame with everything varying: two surfaces (a depth and normal edge), texture
 /// patches, noisy light, feature variances, a sky corner.
 fn busy(width: usize, height: usize, seed: u64) -> Frame {
@@ -623,14 +638,8 @@ fn variance_units_follow_the_noise() {
         sigma_indirect: 3.0,
         ..data_driven()
     };
-    let noise = |img: &[Vec3]| {
-        // Spread of a flat 8x8 patch away from the step.
-        let v: Vec<f32> = (10..18)
-            .flat_map(|y| (4..12).map(move |x| img[y * w + x].x))
-            .collect();
-        let m = v.iter().sum::<f32>() / v.len() as f32;
-        (v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32).sqrt()
-    };
+    // Spread of a flat 8x8 patch away from the step.
+    let noise = |img: &[Vec3]| spread(img, w, 4..12, 10..18);
     let few = image(4.0);
     let out = few.filter(&variance);
     assert!(
@@ -767,16 +776,10 @@ fn texture2_noise_refuses_neighbours_only_with_the_thesis_test() {
         f.texture2[i] = rng.vec3(0.0, 1.0);
     }
     // Spread of the 21x21 block of pixels whose windows lie inside the image.
-    let spread = |img: &[Vec3]| {
-        let v: Vec<f32> = (10..31)
-            .flat_map(|y| (10..31).map(move |x| img[y * w + x].x))
-            .collect();
-        let m = v.iter().sum::<f32>() / v.len() as f32;
-        (v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32).sqrt()
-    };
-    let before = spread(&f.indirect);
-    let without = spread(&f.filter(&data_driven()));
-    let with = spread(&f.filter(&FilterConfig {
+    let inside = |img: &[Vec3]| spread(img, w, 10..31, 10..31);
+    let before = inside(&f.indirect);
+    let without = inside(&f.filter(&data_driven()));
+    let with = inside(&f.filter(&FilterConfig {
         texture2_test: true,
         ..data_driven()
     }));
