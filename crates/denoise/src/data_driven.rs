@@ -52,10 +52,11 @@
 //!   `e_p^2 + e_q^2`. A pixel whose few samples held a firefly (a large `e_p`) then takes its
 //!   neighbours' light, and lends them a little of its own. Over the product `e_p e_q` (this
 //!   filter's first form, `"product"`) a neighbour whose samples agree is a wall to it and
-//!   the firefly stays (measured: the refractive box's CIELUV MSE at 8 spp 0.52x the
-//!   unfiltered image's with the product, 0.15x with the sum; the helmet's visor, whose true
-//!   highlights look like fireflies at 8 spp, loses: 0.96x to 1.04x; BENCHMARKS.md, "Seed
-//!   001"). The sum costs a division per tap (within the benchmark's noise).
+//!   the firefly stays (measured, with the texture2 test: the refractive box's CIELUV MSE at
+//!   8 spp 0.52x the unfiltered image's with the product, 0.15x with the sum; the helmet's
+//!   visor, whose true highlights look like fireflies at 8 spp, loses: 0.96x to 1.04x;
+//!   BENCHMARKS.md, "Seed 001"). The sum costs a division per tap (within the benchmark's
+//!   noise).
 //! - **Blurred standard errors** (`error_blur`, not in the thesis; off by default): a few
 //!   samples' variance is itself noisy, and a pixel whose samples happened to agree (no
 //!   firefly among them) has an error near the floor and is a wall to its neighbours. With
@@ -713,7 +714,16 @@ impl Row<'_> {
             c.c_texture[j] = lowered(s.texture, TEXTURE, variance[TEXTURE]);
             c.c_texture2[j] = lowered(s.texture2, TEXTURE2, variance[TEXTURE2]);
             // The centre's half of the colour scales (the neighbour's is its plane); with
-            // squared errors the window divides by their sum.
+            // squared errors the window divides by their sum, and a centre that is not valid
+            // (its planes 0: the sky, a bad pixel, past the row's end; its sums unused) gets
+            // 1, so that no lane divides 0 by 0.
+            if s.sum {
+                for scale in [&mut c.scale_direct[j], &mut c.scale_indirect[j]] {
+                    if *scale == 0.0 {
+                        *scale = 1.0;
+                    }
+                }
+            }
             let own = |k: f32, scale: f32| if s.sum { k } else { k * scale };
             c.c_direct[j] = own(s.direct, c.scale_direct[j]);
             c.c_indirect[j] = own(s.indirect, c.scale_indirect[j]);
