@@ -111,29 +111,31 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
             });
         }
     }
-    // The narrower lanes, where the processor has wider ones, and the errors' product in the
-    // colour test (21x21 with holes only).
+    // The filter before 2026-11-26 (the errors' product in the colour test, sigma 4, the
+    // texture2 test), and the narrower lanes where the processor has wider ones (21x21 with
+    // holes only).
     if kernels.contains(&21) {
-        let config = FilterConfig {
+        let holes = FilterConfig {
             method: Method::DataDriven,
             kernel: 21,
             holes: true,
-            error_pair: ErrorPair::Product,
             ..FilterConfig::default()
         };
-        group.bench_function("kernel 21 holes product", |b| {
-            b.iter(|| filter.filter(&features, &config, &mut out).unwrap())
-        });
-        for lanes in ["avx2", "portable"] {
-            let config = FilterConfig {
-                method: Method::DataDriven,
-                kernel: 21,
-                holes: true,
-                ..FilterConfig::default()
-            };
+        let before = FilterConfig {
+            error_pair: ErrorPair::Product,
+            sigma_direct: 4.0,
+            sigma_indirect: 4.0,
+            texture2_test: true,
+            ..holes.clone()
+        };
+        for (name, config, lanes) in [
+            ("product", before, "widest"),
+            ("avx2", holes.clone(), "avx2"),
+            ("portable", holes, "portable"),
+        ] {
             let mut filter = DataDriven::new();
             filter.set_lanes(lanes);
-            group.bench_function(format!("kernel 21 holes {lanes}"), |b| {
+            group.bench_function(format!("kernel 21 holes {name}"), |b| {
                 b.iter(|| filter.filter(&features, &config, &mut out).unwrap())
             });
         }

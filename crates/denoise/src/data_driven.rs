@@ -182,14 +182,14 @@ impl DataDriven {
         }
         let radius = (config.kernel / 2) as usize;
         let layout = Layout::new(features.width, radius);
-        self.fill_planes(features, layout, config);
+        let scales = Scales::new(config);
+        self.fill_planes(features, layout, config, scales.sum);
         let step = if config.holes { 2 } else { 1 };
         let offsets: Vec<usize> = (0..=2 * radius)
             .step_by(step)
             .flat_map(|dy| (0..=2 * radius).step_by(step).map(move |dx| (dy, dx)))
             .map(|(dy, dx)| dy * layout.row + dx)
             .collect();
-        let scales = Scales::new(config);
         let planes = &self.planes;
         out.par_chunks_mut(features.width)
             .enumerate()
@@ -211,7 +211,8 @@ impl DataDriven {
     /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
     /// the sky and bad pixels. The padding is zeroed when the layout changes and never
     /// written after.
-    fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig) {
+    /// `sum`: the colour scales are squared errors ([`Scales::sum`]).
+    fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig, sum: bool) {
         let (units, demodulate) = (config.colour_units, config.demodulate);
         let rows = f.height + 2 * layout.radius;
         if self.layout != Some((layout, f.height)) {
@@ -248,7 +249,7 @@ impl DataDriven {
             units,
             demodulate,
             all_errors: blur,
-            pair: config.error_pair,
+            sum,
         };
         let r = layout.radius;
         self.planes[r * layout.row..(r + f.height) * layout.row]
@@ -362,7 +363,8 @@ struct FillRows<'a> {
     demodulate: bool,
     /// `errors` holds every pixel's standard errors (blurred), not only the unknown ones'.
     all_errors: bool,
-    pair: ErrorPair,
+    /// The colour scales are squared errors ([`Scales::sum`]), not their inverses.
+    sum: bool,
 }
 
 impl FillRows<'_> {
@@ -444,9 +446,10 @@ impl FillRows<'_> {
                             errors[x][k]
                         };
                         let e = e.max(floor);
-                        match self.pair {
-                            ErrorPair::Sum => e * e,
-                            ErrorPair::Product => 1.0 / e,
+                        if self.sum {
+                            e * e
+                        } else {
+                            1.0 / e
                         }
                     })
                 }

@@ -63,7 +63,7 @@ fn the_filter_keeps_the_history_and_lowers_the_error() {
         filtered.sources().linear(DisplayMode::Accumulated)
     );
     // Against the reference path tracer at 1024 spp, the filtered 8-spp image is much closer
-    // than the unfiltered one (eval's 001-quality measures 0.29x at 320x180 with the 21-pixel
+    // than the unfiltered one (eval's 001-quality measures 0.11x at 320x180 with the 21-pixel
     // window; here 128x96 with a 9-pixel one, the same share of the image).
     let mut c = config(Method::None);
     (c.width, c.height) = (128, 96);
