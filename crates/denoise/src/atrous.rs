@@ -18,7 +18,7 @@ use glam::Vec3;
 use pathlight_core::color::{luminance, LUMINANCE};
 use rayon::prelude::*;
 
-use crate::simd::{dispatch, exp_neg, F32xN, Isa, Kernel, LANES};
+use crate::simd::{dispatch, exp_neg, store_first, F32xN, Isa, Kernel, LANES};
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
@@ -153,6 +153,41 @@ pub struct Planes {
     next: Vec<f32>,
 }
 
+/// One image row of the light's planes, which [`Planes::load_light_rows`] gives to its caller.
+pub struct LightRow<'a> {
+    row: &'a mut [f32],
+    pitch: usize,
+    pad: usize,
+    /// The signals laid out (1 or 2).
+    pub signals: usize,
+}
+
+impl LightRow<'_> {
+    /// Plane `p` of the row from the image's first column on, with [`LANES`] columns of
+    /// padding at least past the image's last one (where a caller writes only zeros: the
+    /// padding stays zero).
+    fn plane(&mut self, p: usize) -> &mut [f32] {
+        &mut self.row[p * self.pitch + self.pad..(p + 1) * self.pitch]
+    }
+
+    /// Channel `k` of signal `s`'s light.
+    pub fn light(&mut self, s: usize, k: usize) -> &mut [f32] {
+        self.plane(L + 3 * s + k)
+    }
+
+    /// Signal `s`'s luminance variance.
+    pub fn variance(&mut self, s: usize) -> &mut [f32] {
+        let p = v(self.signals) + s;
+        self.plane(p)
+    }
+
+    /// Signal `s`'s luminance.
+    pub fn luminance(&mut self, s: usize) -> &mut [f32] {
+        let p = lum(self.signals) + s;
+        self.plane(p)
+    }
+}
+
 /// One frame's per-pixel features for the passes (row-major, unpadded; the functions of a
 /// pixel's index are worked out as the planes are laid out).
 pub struct Statics<'a, G, T> {
@@ -225,6 +260,29 @@ impl Planes {
         extra: &mut [T],
         light: impl Fn(usize, &mut T) -> ([Vec3; 2], [f32; 2]) + Sync,
     ) {
+        let w = self.moving.width;
+        self.load_light_rows(extra, |y, extra, mut row| {
+            for (x, e) in extra.iter_mut().enumerate() {
+                let (l, variance) = light(y * w + x, e);
+                for (s, l) in l.iter().enumerate().take(row.signals) {
+                    for (k, &c) in l.to_array().iter().enumerate() {
+                        row.light(s, k)[x] = c;
+                    }
+                    row.variance(s)[x] = variance[s];
+                    row.luminance(s)[x] = luminance(*l);
+                }
+            }
+        });
+    }
+
+    /// Lays out the light, its luminance variance and luminance row by row: `f(y, extra, row)`
+    /// writes image row `y`'s (`extra` is the row's part of `extra`, one entry a pixel); what
+    /// it returns, row by row.
+    pub fn load_light_rows<T: Send, R: Send>(
+        &mut self,
+        extra: &mut [T],
+        f: impl Fn(usize, &mut [T], LightRow) -> R + Sync,
+    ) -> Vec<R> {
         let g = self.moving;
         let (w, pad, signals) = (g.width, g.pad, self.signals);
         assert_eq!(extra.len(), w * g.height, "one entry a pixel");
@@ -232,26 +290,31 @@ impl Planes {
             .par_chunks_mut(g.row())
             .zip(extra.par_chunks_mut(w))
             .enumerate()
-            .for_each(|(y, (row, extra))| {
-                for (x, e) in extra.iter_mut().enumerate() {
-                    let (l, variance) = light(y * w + x, e);
-                    let at = |p: usize| p * g.pitch + pad + x;
-                    for s in 0..signals {
-                        for k in 0..3 {
-                            row[at(L + 3 * s + k)] = l[s][k];
-                        }
-                        row[at(v(signals) + s)] = variance[s];
-                        row[at(lum(signals) + s)] = luminance(l[s]);
-                    }
-                }
-            });
+            .map(|(y, (row, extra))| {
+                let row = LightRow {
+                    row,
+                    pitch: g.pitch,
+                    pad,
+                    signals,
+                };
+                f(y, extra, row)
+            })
+            .collect()
     }
 
-    /// Replaces the variance of the pixels where `variance(i)` gives one.
-    pub fn amend_variance(&mut self, variance: impl Fn(usize) -> Option<[f32; 2]> + Sync) {
+    /// Replaces the variance of the pixels where `variance(i)` gives one, in the rows `y`
+    /// where `rows[y]` (the others have none).
+    pub fn amend_variance(
+        &mut self,
+        rows: &[bool],
+        variance: impl Fn(usize) -> Option<[f32; 2]> + Sync,
+    ) {
         let g = self.moving;
         let signals = self.signals;
         g.for_rows(&mut self.current, |y, row| {
+            if !rows[y as usize] {
+                return;
+            }
             for x in 0..g.width {
                 if let Some(value) = variance(y as usize * g.width + x) {
                     for (s, value) in value.iter().enumerate().take(signals) {
@@ -262,15 +325,20 @@ impl Planes {
         });
     }
 
-    /// The current light of every pixel, row-major.
-    pub fn light(&self, out: &mut Vec<[Vec3; 2]>) {
-        out.resize(self.moving.width * self.moving.height, [Vec3::ZERO; 2]);
-        self.map_light(out, |_, light| light);
+    /// Gives every pixel's current light to `f(&mut out[i], light)` (row-major, one entry a
+    /// pixel; the second signal zero when one is filtered).
+    pub fn put_light<T: Send>(&self, out: &mut [T], f: impl Fn(&mut T, [Vec3; 2]) + Sync) {
+        self.for_light(out, |_, o, light| f(o, light));
     }
 
     /// `f(i, light)` of every pixel `i` (row-major) and its current light, into `out` (one
     /// entry a pixel; the second signal zero when one is filtered).
     pub fn map_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, [Vec3; 2]) -> T + Sync) {
+        self.for_light(out, |i, o, light| *o = f(i, light));
+    }
+
+    /// `f(i, &mut out[i], light)` of every pixel `i` (row-major) and its current light.
+    fn for_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, &mut T, [Vec3; 2]) + Sync) {
         let g = self.moving;
         let signals = self.signals;
         out.par_chunks_mut(g.width)
@@ -285,7 +353,7 @@ impl Planes {
                     } else {
                         Vec3::ZERO
                     };
-                    *o = f(y * g.width + x, [Vec3::new(c(0), c(1), c(2)), second]);
+                    f(y * g.width + x, o, [Vec3::new(c(0), c(1), c(2)), second]);
                 }
             });
     }
@@ -431,16 +499,9 @@ impl Pass<'_> {
             out[4] = c[0] * r + c[1] * gr + c[2] * b;
             let l = L + 3 * sig;
             for (value, p) in out.into_iter().zip([l, l + 1, l + 2, v + sig, lum + sig]) {
-                let at = p * g.pitch + g.pad + x0 as usize;
-                if n == V::N {
-                    assert!(at + V::N <= row.len());
-                    // SAFETY: checked just above.
-                    unsafe { value.store(row.as_mut_ptr().add(at)) }
-                } else {
-                    // The image's last group: the lanes past its width are left alone (the
-                    // padding stays zero).
-                    row[at..at + n].copy_from_slice(&value.to_array()[..n]);
-                }
+                // In the image's last group the lanes past its width are left alone (the
+                // padding stays zero).
+                store_first(value, n, &mut row[p * g.pitch + g.pad + x0 as usize..]);
             }
         }
     }
@@ -561,7 +622,7 @@ pub fn flush_variance(variance: f32) -> f32 {
 
 /// [`flush_variance`] in lanes.
 #[inline(always)]
-fn flush_variance_lanes<V: F32xN>(variance: V) -> V {
+pub(crate) fn flush_variance_lanes<V: F32xN>(variance: V) -> V {
     V::select(variance.ge(V::splat(MIN_VARIANCE)), variance, V::splat(0.0))
 }
 

@@ -50,8 +50,16 @@ pub trait F32xN:
     fn ge(self, o: Self) -> Self::Mask;
     fn ne(self, o: Self) -> Self::Mask;
     fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Some lane is true.
+    fn any(m: Self::Mask) -> bool;
     /// `a` where `m`, else `b`.
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// `*base.add(index * stride)` in the lanes where `m`, 0 in the others (not read); the
+    /// indices are whole numbers in `0..2^24` (exact in an `f32`).
+    ///
+    /// # Safety
+    /// Every address of a lane where `m` is readable, and `index * stride` fits an `i32`.
+    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self;
 }
 
 /// The kinds of lanes, narrowest first.
@@ -110,6 +118,35 @@ unsafe fn run_avx512<R>(f: impl Kernel<R>) -> R {
 #[target_feature(enable = "avx2,fma")]
 unsafe fn run_avx2<R>(f: impl Kernel<R>) -> R {
     f.run::<Avx2>()
+}
+
+/// Stores the first `n` lanes of `value` at the start of `out` (all of them in one store when
+/// `n` is [`F32xN::N`]; the others are left alone).
+#[inline(always)]
+pub fn store_first<V: F32xN>(value: V, n: usize, out: &mut [f32]) {
+    if n == V::N {
+        assert!(V::N <= out.len());
+        // SAFETY: checked just above.
+        unsafe { value.store(out.as_mut_ptr()) }
+    } else {
+        out[..n].copy_from_slice(&value.to_array()[..n]);
+    }
+}
+
+/// The lanes' positions: 0, 1, 2, ...
+#[inline(always)]
+pub fn iota<V: F32xN>() -> V {
+    const IOTA: [f32; LANES] = {
+        let mut a = [0.0; LANES];
+        let mut j = 0;
+        while j < LANES {
+            a[j] = j as f32;
+            j += 1;
+        }
+        a
+    };
+    // SAFETY: `IOTA` has `LANES` lanes.
+    unsafe { V::load(IOTA.as_ptr()) }
 }
 
 /// `e^x` for `x <= 0` in lanes: [`crate::exp::exp_neg`]'s method and polynomial.
@@ -219,8 +256,23 @@ impl F32xN for Portable {
         std::array::from_fn(|j| a[j] && b[j])
     }
     #[inline(always)]
+    fn any(m: Self::Mask) -> bool {
+        m.contains(&true)
+    }
+    #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(std::array::from_fn(|j| if m[j] { a.0[j] } else { b.0[j] }))
+    }
+    #[inline(always)]
+    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
+        Self(std::array::from_fn(|j| {
+            if m[j] {
+                // SAFETY: the caller's contract.
+                unsafe { *base.offset(index.0[j] as isize * stride as isize) }
+            } else {
+                0.0
+            }
+        }))
     }
 }
 
@@ -323,8 +375,25 @@ impl F32xN for Avx512 {
         a & b
     }
     #[inline(always)]
+    fn any(m: Self::Mask) -> bool {
+        m != 0
+    }
+    #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(avx512!(_mm512_mask_blend_ps(m, b.0, a.0)))
+    }
+    #[inline(always)]
+    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
+        let offsets = avx512!(_mm512_mullo_epi32(
+            _mm512_cvttps_epi32(index.0),
+            _mm512_set1_epi32(stride)
+        ));
+        Self(avx512!(_mm512_mask_i32gather_ps::<4>(
+            _mm512_setzero_ps(),
+            m,
+            offsets,
+            base
+        )))
     }
 }
 
@@ -426,8 +495,25 @@ impl F32xN for Avx2 {
         avx2!(_mm256_and_ps(a, b))
     }
     #[inline(always)]
+    fn any(m: Self::Mask) -> bool {
+        avx2!(_mm256_movemask_ps(m)) != 0
+    }
+    #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(avx2!(_mm256_blendv_ps(b.0, a.0, m)))
+    }
+    #[inline(always)]
+    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
+        let offsets = avx2!(_mm256_mullo_epi32(
+            _mm256_cvttps_epi32(index.0),
+            _mm256_set1_epi32(stride)
+        ));
+        Self(avx2!(_mm256_mask_i32gather_ps::<4>(
+            _mm256_setzero_ps(),
+            base,
+            offsets,
+            m
+        )))
     }
 }
 
@@ -480,6 +566,18 @@ mod tests {
                         x
                     } else {
                         y
+                    }
+                });
+                assert!(V::any(vb.gt(va)) && !V::any(va.gt(V::splat(100.0))));
+                // Lanes j read `a[15 - j]` where `b` is at least 0, stride 1; 0 elsewhere.
+                let index = V::splat(15.0) - (va - V::splat(-5.0)) / V::splat(0.75);
+                // SAFETY: the indices are 0..16 and `a` has 16 lanes.
+                let g = unsafe { V::gather(a.as_ptr(), index, 1, vb.ge(V::splat(0.0))) };
+                same(g, &|x, y| {
+                    if y >= 0.0 {
+                        a[15 - ((x + 5.0) / 0.75).round() as usize]
+                    } else {
+                        0.0
                     }
                 });
                 let mut out = [7.0; LANES];

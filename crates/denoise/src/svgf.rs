@@ -39,19 +39,24 @@
 //!
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
 //! (holes of 32 pixels), the temporal pass, the variance and the depth gradient worked out as
-//! the planes are laid out (each a function of the pixel: `integrate`, `spatial_variance`,
-//! `depth_gradient`); the scalar passes here, with their own buffers, are the reference they
-//! are tested against and run beyond that.
+//! the planes are laid out: the temporal pass in lanes (`Temporal`, the previous frame's taps
+//! gathered from one record per pixel, `State`), the variance and the depth gradient as
+//! functions of the pixel (`spatial_variance`, `depth_gradient`). The scalar passes here, with
+//! their own buffers (and `integrate`, the temporal pass of one pixel), are the reference they
+//! are tested against and run beyond that (and for images of 2^24 pixels or more, whose
+//! indices an `f32` lane does not hold exactly).
 
 use glam::{Vec2, Vec3};
-use pathlight_core::color::luminance;
+use pathlight_core::color::{luminance, LUMINANCE};
 use rayon::prelude::*;
 
 use crate::atrous::{
-    flush_variance, normal_weight, spline, Planes, Statics, BLUR, MAX_PAD, MIN_WEIGHT,
+    flush_variance, flush_variance_lanes, normal_weight, spline, LightRow, Planes, Statics, BLUR,
+    MAX_PAD, MIN_WEIGHT,
 };
 use crate::exp::exp_neg;
 use crate::features::demodulator;
+use crate::simd::{dispatch, iota, store_first, F32xN, Kernel, LANES};
 use crate::FilterError;
 
 /// One frame's inputs, per pixel in row-major order.
@@ -101,18 +106,15 @@ pub struct Svgf {
     height: usize,
     /// The history holds direct and indirect light apart (else their sum in the first).
     split: bool,
-    /// Last frame's integrated (after the first a-trous pass) demodulated light.
-    history: Vec<[Vec3; 2]>,
-    /// Last frame's moments (first and second of luminance, direct and indirect).
-    moments: Vec<Moments>,
-    depth: Vec<f32>,
-    normal: Vec<Vec3>,
+    /// Last frame's state of each pixel, which the temporal pass reads.
+    state: Vec<State>,
+    /// This frame's, written by the temporal pass and the first a-trous pass.
+    next: Vec<State>,
     // Scratch of this frame.
     light: Vec<[Vec3; 2]>,
     variance: Vec<[f32; 2]>,
     next_light: Vec<[Vec3; 2]>,
     next_variance: Vec<[f32; 2]>,
-    new_moments: Vec<Moments>,
     gradient: Vec<f32>,
     /// The luminance of `light` (per a-trous pass).
     luminance: Vec<[f32; 2]>,
@@ -150,7 +152,7 @@ impl Svgf {
 
     /// Forgets the history (a cut: the next frame starts afresh).
     pub fn reset(&mut self) {
-        self.moments.clear();
+        self.state.clear();
     }
 
     /// Filters `frame` into `out` with the passes `p` gives, using and updating the history.
@@ -189,23 +191,16 @@ impl Svgf {
             return Ok(());
         }
         if (self.width, self.height, self.split) != (f.width, f.height, split)
-            || self.moments.len() != n
+            || self.state.len() != n
         {
             self.width = f.width;
             self.height = f.height;
             self.split = split;
-            self.history = vec![[Vec3::ZERO; 2]; n];
-            self.moments = vec![Moments::default(); n];
-            self.depth = vec![f32::INFINITY; n];
-            self.normal = vec![Vec3::ZERO; n];
+            self.state = vec![State::default(); n];
         }
+        self.next.resize(n, State::default());
         let pad = 2usize << iterations.saturating_sub(1);
-        let previous = Previous {
-            history: &self.history,
-            moments: &self.moments,
-            depth: &self.depth,
-            normal: &self.normal,
-        };
+        let previous = &self.state;
         if pad <= MAX_PAD && !self.scalar {
             // The temporal pass, the variance and the depth gradient worked out as the planes
             // are laid out: the integrated light straight into them.
@@ -217,35 +212,54 @@ impl Svgf {
                 gradient: |i| depth_gradient(f, i),
                 through: |i| passes_through(f, i),
             });
-            self.new_moments.resize(n, Moments::default());
-            self.planes.load_light(&mut self.new_moments, |i, m| {
-                let (light, moments) = integrate(f, &previous, split, i);
-                *m = moments;
-                (light, moments.variance())
-            });
+            // The rows with pixels whose history is short.
+            let rows = if n < 1 << 24 {
+                // In lanes (the pixels' indices are exact in an `f32`).
+                let isa = self.planes.isa;
+                self.planes.load_light_rows(&mut self.next, |y, next, row| {
+                    let t = Temporal {
+                        f,
+                        previous,
+                        split,
+                        y,
+                        row,
+                        next,
+                    };
+                    dispatch(isa, t)
+                })
+            } else {
+                self.planes.load_light(&mut self.next, |i, s| {
+                    let light;
+                    (light, *s) = integrate(f, previous, split, i);
+                    (light, variance(s.m))
+                });
+                vec![true; f.height]
+            };
             // Where the history is short, the variance from the neighbourhood's moments.
-            let moments = &self.new_moments;
-            self.planes
-                .amend_variance(|i| short(f, moments, i).then(|| spatial_variance(f, moments, i)));
+            let next = &self.next;
+            self.planes.amend_variance(&rows, |i| {
+                short(f, next, i).then(|| spatial_variance(f, next, i))
+            });
             for i in 0..iterations {
                 self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
                 if i == 0 {
-                    self.planes.light(&mut self.history);
+                    self.planes
+                        .put_light(&mut self.next, |s, light| s.light = light);
                 }
             }
             if iterations == 0 {
-                self.planes.light(&mut self.history);
+                self.planes
+                    .put_light(&mut self.next, |s, light| s.light = light);
             }
             self.planes
                 .map_light(out, |i, [d, n]| remodulate(f, i, d + n));
         } else {
-            // Temporal accumulation into `light` and `new_moments`.
+            // Temporal accumulation into `light` and `next`.
             self.light.resize(n, [Vec3::ZERO; 2]);
-            self.new_moments.resize(n, Moments::default());
-            (&mut self.light, &mut self.new_moments)
+            (&mut self.light, &mut self.next)
                 .into_par_iter()
                 .enumerate()
-                .for_each(|(i, (light, m))| (*light, *m) = integrate(f, &previous, split, i));
+                .for_each(|(i, (light, s))| (*light, *s) = integrate(f, previous, split, i));
             self.spatial_variance(f);
             self.depth_gradient(f);
             for i in 0..iterations {
@@ -253,22 +267,25 @@ impl Svgf {
                 std::mem::swap(&mut self.light, &mut self.next_light);
                 std::mem::swap(&mut self.variance, &mut self.next_variance);
                 if i == 0 {
-                    self.history.clone_from(&self.light);
+                    self.keep_light();
                 }
             }
             if iterations == 0 {
-                self.history.clone_from(&self.light);
+                self.keep_light();
             }
             out.par_iter_mut()
                 .enumerate()
                 .for_each(|(i, o)| *o = remodulate(f, i, self.light[i][0] + self.light[i][1]));
         }
-        std::mem::swap(&mut self.moments, &mut self.new_moments);
-        self.depth.clear();
-        self.depth.extend_from_slice(f.depth);
-        self.normal.clear();
-        self.normal.extend_from_slice(f.normal);
+        std::mem::swap(&mut self.state, &mut self.next);
         Ok(())
+    }
+
+    /// `light` as this frame's history (the scalar passes).
+    fn keep_light(&mut self) {
+        (&mut self.next, &self.light)
+            .into_par_iter()
+            .for_each(|(s, light)| s.light = *light);
     }
 
     /// The luminance variance of each signal (from the temporal moments, or [`spatial_variance`]
@@ -276,12 +293,12 @@ impl Svgf {
     fn spatial_variance(&mut self, f: &SvgfFrame) {
         let n = f.width * f.height;
         self.variance.resize(n, [0.0; 2]);
-        let moments = &self.new_moments;
+        let next = &self.next;
         self.variance.par_iter_mut().enumerate().for_each(|(i, v)| {
-            *v = if short(f, moments, i) {
-                spatial_variance(f, moments, i)
+            *v = if short(f, next, i) {
+                spatial_variance(f, next, i)
             } else {
-                moments[i].variance()
+                variance(next[i].m)
             }
         });
     }
@@ -401,38 +418,34 @@ fn remodulate(f: &SvgfFrame, i: usize, light: Vec3) -> Vec3 {
     }
 }
 
-/// Last frame's state, which the temporal pass reads.
-struct Previous<'a> {
-    /// Integrated (after the first a-trous pass) demodulated light.
-    history: &'a [[Vec3; 2]],
-    moments: &'a [Moments],
-    depth: &'a [f32],
-    normal: &'a [Vec3],
-}
-
-/// A pixel's integrated luminance moments (first and second, direct and indirect) and the
-/// length of its history in frames.
+/// What a pixel carries to the next frame's temporal pass, in one record of one cache line (a
+/// reprojected tap reads one line instead of one from each of several arrays).
 #[derive(Debug, Clone, Copy, Default)]
-struct Moments {
+#[repr(C, align(64))]
+struct State {
+    /// The integrated (after the first a-trous pass) demodulated light.
+    light: [Vec3; 2],
+    /// The integrated luminance moments (first and second, direct and indirect).
     m: [f32; 4],
+    /// The history's length in frames (0: none).
     length: f32,
+    depth: f32,
+    normal: Vec3,
 }
 
-impl Moments {
-    /// The luminance variance of each signal.
-    fn variance(&self) -> [f32; 2] {
-        let m = self.m;
-        [
-            flush_variance(m[1] - m[0] * m[0]),
-            flush_variance(m[3] - m[2] * m[2]),
-        ]
-    }
+/// The luminance variance of each signal from moments `m`.
+fn variance(m: [f32; 4]) -> [f32; 2] {
+    [
+        flush_variance(m[1] - m[0] * m[0]),
+        flush_variance(m[3] - m[2] * m[2]),
+    ]
 }
 
 /// Temporal accumulation at pixel `i`: this frame's demodulated light (direct and indirect
-/// apart if `split`, else their sum) blended with last frame's history at the reprojected
-/// position; the integrated light and its moments.
-fn integrate(f: &SvgfFrame, p: &Previous, split: bool, i: usize) -> ([Vec3; 2], Moments) {
+/// apart if `split`, else their sum) blended with last frame's history (`previous`) at the
+/// reprojected position; the integrated light and the pixel's state (its light left for the
+/// first a-trous pass to fill in).
+fn integrate(f: &SvgfFrame, previous: &[State], split: bool, i: usize) -> ([Vec3; 2], State) {
     let (w, h) = (f.width, f.height);
     let a = demodulator(f.albedo[i]);
     let current = if split {
@@ -442,16 +455,17 @@ fn integrate(f: &SvgfFrame, p: &Previous, split: bool, i: usize) -> ([Vec3; 2], 
     };
     let lum = [luminance(current[0]), luminance(current[1])];
     let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
+    let state = |m, length| State {
+        light: [Vec3::ZERO; 2],
+        m,
+        length,
+        depth: f.depth[i],
+        normal: f.normal[i],
+    };
     let finite = current.iter().all(|c| c.is_finite());
     if passes_through(f, i) || !finite {
         let light = if finite { current } else { [Vec3::ZERO; 2] };
-        return (
-            light,
-            Moments {
-                m: now,
-                length: 0.0,
-            },
-        );
+        return (light, state(now, 0.0));
     }
     // Reverse reprojection: bilinear taps of the previous frame around p + motion.
     let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
@@ -469,34 +483,29 @@ fn integrate(f: &SvgfFrame, p: &Previous, split: bool, i: usize) -> ([Vec3; 2], 
         (1, 1, fx * fy),
     ] {
         let (qx, qy) = (x0 as i64 + dx, y0 as i64 + dy);
-        if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 || bw <= 0.0 {
+        // (A motion that is not finite gives weights that are not: no tap.)
+        if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 || bw.is_nan() || bw <= 0.0 {
             continue;
         }
-        let q = qy as usize * w + qx as usize;
-        let m = &p.moments[q];
-        if m.length <= 0.0
-            || !p.depth[q].is_finite()
-            || (p.depth[q] - f.depth[i]).abs() > DEPTH_TOLERANCE * f.depth[i]
-            || p.normal[q].dot(f.normal[i]) < NORMAL_COSINE
+        let p = &previous[qy as usize * w + qx as usize];
+        if p.length <= 0.0
+            || !p.depth.is_finite()
+            || (p.depth - f.depth[i]).abs() > DEPTH_TOLERANCE * f.depth[i]
+            || p.normal.dot(f.normal[i]).is_nan()
+            || p.normal.dot(f.normal[i]) < NORMAL_COSINE
         {
             continue;
         }
         sum_w += bw;
-        old[0] += p.history[q][0] * bw;
-        old[1] += p.history[q][1] * bw;
-        for (o, m) in old_m.iter_mut().zip(m.m) {
+        old[0] += p.light[0] * bw;
+        old[1] += p.light[1] * bw;
+        for (o, m) in old_m.iter_mut().zip(p.m) {
             *o += m * bw;
         }
-        old_len += m.length * bw;
+        old_len += p.length * bw;
     }
     if sum_w < 1e-3 {
-        return (
-            current,
-            Moments {
-                m: now,
-                length: 1.0,
-            },
-        );
+        return (current, state(now, 1.0));
     }
     let inv = 1.0 / sum_w;
     let n_new = (old_len * inv + 1.0).min(MAX_LENGTH);
@@ -506,17 +515,251 @@ fn integrate(f: &SvgfFrame, p: &Previous, split: bool, i: usize) -> ([Vec3; 2], 
         old[1] * inv * (1.0 - alpha) + current[1] * alpha,
     ];
     let m = std::array::from_fn(|k| old_m[k] * inv * (1.0 - alpha) + now[k] * alpha);
-    (light, Moments { m, length: n_new })
+    (light, state(m, n_new))
+}
+
+/// [`integrate`] in lanes, [`F32xN::N`] pixels of row `y` at a time: the integrated light, its
+/// variance and luminance into `row`, the pixels' states into `next` (the row's; their light
+/// left for the first a-trous pass); whether some pixel's history is [`short`]. The same arithmetic in the same order, so the same
+/// numbers; the previous frame's taps are gathers of the lanes that pass the tests, and a tap
+/// no lane takes (a still camera's three others) is skipped. (No closures here: see
+/// `simd::exp_neg`.)
+struct Temporal<'a, 'f> {
+    f: &'a SvgfFrame<'f>,
+    previous: &'a [State],
+    split: bool,
+    y: usize,
+    row: LightRow<'a>,
+    next: &'a mut [State],
+}
+
+impl Kernel<bool> for Temporal<'_, '_> {
+    #[inline(always)]
+    fn run<V: F32xN>(mut self) -> bool {
+        let mut short = false;
+        let mut x0 = 0;
+        while x0 < self.f.width {
+            short |= self.group::<V>(x0);
+            x0 += V::N;
+        }
+        short
+    }
+}
+
+/// The record's fields, in `f32`s from its start.
+const LIGHT: usize = 0;
+const MOMENTS: usize = 6;
+const LENGTH: usize = 10;
+const DEPTH: usize = 11;
+const NORMAL: usize = 12;
+/// A record's size in `f32`s.
+const RECORD: i32 = (std::mem::size_of::<State>() / 4) as i32;
+
+impl Temporal<'_, '_> {
+    /// The group of pixels from `x0` on; whether one's history is [`short`].
+    #[inline(always)]
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool {
+        let f = self.f;
+        let (w, h) = (f.width, f.height);
+        let i0 = self.y * w + x0;
+        let n = V::N.min(w - x0);
+        let splat = V::splat;
+        let (zero, one) = (splat(0.0), splat(1.0));
+        let lane = iota::<V>();
+        let valid = splat(n as f32).gt(lane);
+        let index = splat(i0 as f32) + lane;
+        let (albedo, direct, indirect, normal) = (
+            gather3(f.albedo, index, valid),
+            gather3(f.direct, index, valid),
+            gather3(f.indirect, index, valid),
+            gather3(f.normal, index, valid),
+        );
+        // SAFETY: the lanes where `valid` index this row's pixels.
+        let (depth, mx, my) = unsafe {
+            let motion = f.motion.as_ptr().cast::<f32>();
+            (
+                V::gather(f.depth.as_ptr(), index, 1, valid),
+                V::gather(motion, index, 2, valid),
+                V::gather(motion.add(1), index, 2, valid),
+            )
+        };
+        let mut emitter = [0.0f32; LANES];
+        for (e, &b) in emitter.iter_mut().zip(&f.emitter[i0..i0 + n]) {
+            *e = if b { 1.0 } else { 0.0 };
+        }
+        // SAFETY: `emitter` has `LANES` lanes.
+        let emitter = unsafe { V::load(emitter.as_ptr()) };
+        let infinity = splat(f32::INFINITY);
+        // Not passed through (`passes_through`).
+        let live = V::and(
+            V::and(valid, infinity.gt(depth.abs())),
+            splat(0.5).gt(emitter),
+        );
+
+        let mut cur = [[zero; 3]; 2];
+        for k in 0..3 {
+            let a = V::select(albedo[k].ge(splat(0.01)), albedo[k], splat(0.01));
+            if self.split {
+                cur[0][k] = direct[k] / a;
+                cur[1][k] = indirect[k] / a;
+            } else {
+                cur[0][k] = (direct[k] + indirect[k]) / a;
+            }
+        }
+        let mut finite = valid;
+        for c in cur.iter().flatten() {
+            finite = V::and(finite, infinity.gt(c.abs()));
+        }
+        let lum = [luminance_lanes(cur[0]), luminance_lanes(cur[1])];
+        let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
+
+        // Reverse reprojection: bilinear taps of the previous frame around p + motion.
+        let px = (splat(x0 as f32) + lane + splat(0.5)) + mx - splat(0.5);
+        let py = splat(self.y as f32 + 0.5) + my - splat(0.5);
+        let (fx0, fy0) = (px.floor(), py.floor());
+        let (fx, fy) = (px - fx0, py - fy0);
+        let reprojects = V::and(live, finite);
+        let signals = if self.split { 2 } else { 1 };
+        let base = self.previous.as_ptr().cast::<f32>();
+        let mut sum_w = zero;
+        let mut old = [[zero; 3]; 2];
+        let mut old_m = [zero; 4];
+        let mut old_len = zero;
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let bx = if dx == 0.0 { one - fx } else { fx };
+            let by = if dy == 0.0 { one - fy } else { fy };
+            let bw = bx * by;
+            let (qx, qy) = (fx0 + splat(dx), fy0 + splat(dy));
+            let inside = V::and(
+                V::and(
+                    V::and(qx.ge(zero), qy.ge(zero)),
+                    V::and(splat(w as f32).gt(qx), splat(h as f32).gt(qy)),
+                ),
+                V::and(bw.gt(zero), reprojects),
+            );
+            if !V::any(inside) {
+                continue;
+            }
+            let q = qy * splat(w as f32) + qx;
+            // SAFETY (every `field` below): the lanes where `inside` (and so `keep`) index
+            // pixels of the previous frame, which has as many as this one.
+            let (length, pdepth, dot) = unsafe {
+                (
+                    field(base, LENGTH, q, inside),
+                    field(base, DEPTH, q, inside),
+                    field(base, NORMAL, q, inside) * normal[0]
+                        + field(base, NORMAL + 1, q, inside) * normal[1]
+                        + field(base, NORMAL + 2, q, inside) * normal[2],
+                )
+            };
+            let keep = V::and(
+                V::and(V::and(inside, length.gt(zero)), infinity.gt(pdepth.abs())),
+                V::and(
+                    (splat(DEPTH_TOLERANCE) * depth).ge((pdepth - depth).abs()),
+                    dot.ge(splat(NORMAL_COSINE)),
+                ),
+            );
+            let bw = V::select(keep, bw, zero);
+            sum_w = sum_w + bw;
+            for (s, old) in old.iter_mut().take(signals).enumerate() {
+                for (k, old) in old.iter_mut().enumerate() {
+                    // SAFETY: above.
+                    let l = unsafe { field(base, LIGHT + 3 * s + k, q, keep) };
+                    *old = *old + l * bw;
+                }
+            }
+            for (k, old) in old_m.iter_mut().take(2 * signals).enumerate() {
+                // SAFETY: above.
+                *old = *old + unsafe { field(base, MOMENTS + k, q, keep) } * bw;
+            }
+            old_len = old_len + length * bw;
+        }
+        let blends = V::and(reprojects, sum_w.ge(splat(1e-3)));
+        let inv = one / sum_w;
+        let n_new = old_len * inv + one;
+        let n_new = V::select(n_new.gt(splat(MAX_LENGTH)), splat(MAX_LENGTH), n_new);
+        let alpha = one / n_new;
+        let alpha = V::select(alpha.ge(splat(MIN_ALPHA)), alpha, splat(MIN_ALPHA));
+        let mut light = [[zero; 3]; 2];
+        for ((light, old), cur) in light.iter_mut().zip(&old).zip(&cur).take(signals) {
+            for ((light, &old), &cur) in light.iter_mut().zip(old).zip(cur) {
+                let blend = old * inv * (one - alpha) + cur * alpha;
+                *light = V::select(blends, blend, V::select(finite, cur, zero));
+            }
+        }
+        let mut m = [zero; 4];
+        for ((m, &old), &now) in m.iter_mut().zip(&old_m).zip(&now) {
+            *m = V::select(blends, old * inv * (one - alpha) + now * alpha, now);
+        }
+        let length = V::select(blends, n_new, V::select(reprojects, one, zero));
+
+        for (s, light) in light.iter().enumerate().take(signals) {
+            for (k, &c) in light.iter().enumerate() {
+                store_first(c, n, &mut self.row.light(s, k)[x0..]);
+            }
+            let l = m[2 * s];
+            let var = flush_variance_lanes(m[2 * s + 1] - l * l);
+            store_first(var, n, &mut self.row.variance(s)[x0..]);
+            store_first(luminance_lanes(*light), n, &mut self.row.luminance(s)[x0..]);
+        }
+        let ma: [[f32; LANES]; 4] = [
+            m[0].to_array(),
+            m[1].to_array(),
+            m[2].to_array(),
+            m[3].to_array(),
+        ];
+        let la = length.to_array();
+        for (j, s) in self.next[x0..x0 + n].iter_mut().enumerate() {
+            *s = State {
+                light: [Vec3::ZERO; 2],
+                m: [ma[0][j], ma[1][j], ma[2][j], ma[3][j]],
+                length: la[j],
+                depth: f.depth[i0 + j],
+                normal: f.normal[i0 + j],
+            };
+        }
+        V::any(V::and(live, splat(4.0).gt(length)))
+    }
+}
+
+/// Field `k` of the records from `base` on at the records `q` in the lanes where `m` (0 in
+/// the others).
+///
+/// # Safety
+/// The records of the lanes where `m` are readable.
+#[inline(always)]
+unsafe fn field<V: F32xN>(base: *const f32, k: usize, q: V, m: V::Mask) -> V {
+    // SAFETY: the caller's.
+    unsafe { V::gather(base.add(k), q, RECORD, m) }
+}
+
+/// The three channels of `buffer`'s pixels `index` in the lanes where `m` (0 in the others).
+#[inline(always)]
+fn gather3<V: F32xN>(buffer: &[Vec3], index: V, m: V::Mask) -> [V; 3] {
+    let base = buffer.as_ptr().cast::<f32>();
+    let mut c = [V::splat(0.0); 3];
+    for (k, c) in c.iter_mut().enumerate() {
+        // SAFETY: the caller's lanes where `m` index pixels of `buffer` (a `Vec3` is three
+        // `f32`s).
+        *c = unsafe { V::gather(base.add(k), index, 3, m) };
+    }
+    c
+}
+
+/// [`luminance`] in lanes (the same products and sums).
+#[inline(always)]
+fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
+    V::splat(LUMINANCE[0]) * c[0] + V::splat(LUMINANCE[1]) * c[1] + V::splat(LUMINANCE[2]) * c[2]
 }
 
 /// Pixel `i`'s history is under 4 frames: its variance comes from its neighbourhood.
-fn short(f: &SvgfFrame, moments: &[Moments], i: usize) -> bool {
-    moments[i].length < 4.0 && !passes_through(f, i)
+fn short(f: &SvgfFrame, state: &[State], i: usize) -> bool {
+    state[i].length < 4.0 && !passes_through(f, i)
 }
 
 /// Pixel `i`'s luminance variance of each signal from the moments of its 7x7 neighbourhood
 /// (weighted by depth and normal), for a short history.
-fn spatial_variance(f: &SvgfFrame, moments: &[Moments], i: usize) -> [f32; 2] {
+fn spatial_variance(f: &SvgfFrame, state: &[State], i: usize) -> [f32; 2] {
     let (w, h) = (f.width as i64, f.height as i64);
     let (x, y) = ((i as i64) % w, (i as i64) / w);
     let mut sum_w = 0.0;
@@ -534,18 +777,15 @@ fn spatial_variance(f: &SvgfFrame, moments: &[Moments], i: usize) -> [f32; 2] {
             }
             let wq = ez.exp() * wn;
             sum_w += wq;
-            for (a, m) in acc.iter_mut().zip(moments[q].m) {
+            for (a, m) in acc.iter_mut().zip(state[q].m) {
                 *a += m * wq;
             }
         }
     }
-    let mean = Moments {
-        m: acc.map(|x| x / sum_w.max(1e-12)),
-        length: moments[i].length,
-    };
+    let mean = acc.map(|x| x / sum_w.max(1e-12));
     // Few frames: the spatial estimate, raised as the paper does.
-    let boost = 4.0 / (mean.length + 1.0).min(4.0);
-    mean.variance().map(|v| v * boost)
+    let boost = 4.0 / (state[i].length + 1.0).min(4.0);
+    variance(mean).map(|v| v * boost)
 }
 
 /// Pixel `i`'s |grad z| from central differences (for the depth test); 0 where not finite.

@@ -319,8 +319,9 @@ fn the_sky_passes_through_and_the_thread_count_changes_nothing() {
     assert_eq!(one, run(3));
 }
 
-/// The vectorised a-trous passes against the scalar ones they replace, on frames with every
-/// kind of pixel (a depth step, a normal edge, an emitter, sky, noise of two scales, motion):
+/// The vectorised passes (the temporal one and the a-trous ones) against the scalar ones they
+/// replace, on frames with every kind of pixel (depth steps of 20% and more, a normal edge,
+/// an emitter, sky, noise of two scales, motion; light and motion that are not finite):
 /// the same image within float rounding (the vectorised exponential may use fused
 /// multiply-adds), over frames that carry history, for 1 to 5 passes and the 6 that reach
 /// the planes' widest padding, and for 7 passes, where the scalar passes run in both.
@@ -334,7 +335,13 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
             for x in 0..w {
                 let i = y * w + x;
                 let right = x > w / 2;
-                f.depth[i] = if right { 3.0 + 0.02 * y as f32 } else { 1.5 };
+                f.depth[i] = if right {
+                    3.0 + 0.02 * y as f32
+                } else if x > w / 4 {
+                    1.8
+                } else {
+                    1.5
+                };
                 f.normal[i] = if y > 2 * h / 3 {
                     Vec3::new(0.0, 0.6, 0.8)
                 } else {
@@ -353,6 +360,12 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
                 }
                 f.emitter[i] = (20..24).contains(&x) && y < 4;
             }
+        }
+        match k {
+            1 => f.direct[5 * w + 30] = Vec3::new(f32::NAN, 0.5, 0.5),
+            2 => f.indirect[6 * w + 31] = Vec3::splat(f32::INFINITY),
+            3 => f.motion[7 * w + 32] = Vec2::new(f32::NAN, 0.0),
+            _ => (),
         }
         f
     };
