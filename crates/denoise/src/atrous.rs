@@ -15,7 +15,7 @@
 //! sigma (the blurred variance) is worked out in the group from the variance planes.
 
 use glam::Vec3;
-use pathlight_core::color::{luminance, LUMINANCE};
+use pathlight_core::color::LUMINANCE;
 use rayon::prelude::*;
 
 use crate::simd::{dispatch, exp_neg, store_first, F32xN, Isa, Kernel, LANES};
@@ -153,21 +153,24 @@ pub struct Planes {
     next: Vec<f32>,
 }
 
+/// Where plane `p` of a padded row of `grid` lies in the row, from the image's first column
+/// on, with [`LANES`] columns of padding at least past the image's last one (where a writer
+/// writes only zeros: the padding stays zero).
+fn plane(grid: &Grid, p: usize) -> std::ops::Range<usize> {
+    p * grid.pitch + grid.pad..(p + 1) * grid.pitch
+}
+
 /// One image row of the light's planes, which [`Planes::load_light_rows`] gives to its caller.
 pub struct LightRow<'a> {
     row: &'a mut [f32],
-    pitch: usize,
-    pad: usize,
+    grid: Grid,
     /// The signals laid out (1 or 2).
     pub signals: usize,
 }
 
 impl LightRow<'_> {
-    /// Plane `p` of the row from the image's first column on, with [`LANES`] columns of
-    /// padding at least past the image's last one (where a caller writes only zeros: the
-    /// padding stays zero).
     fn plane(&mut self, p: usize) -> &mut [f32] {
-        &mut self.row[p * self.pitch + self.pad..(p + 1) * self.pitch]
+        &mut self.row[plane(&self.grid, p)]
     }
 
     /// Channel `k` of signal `s`'s light.
@@ -188,15 +191,60 @@ impl LightRow<'_> {
     }
 }
 
-/// One frame's per-pixel features for the passes (row-major, unpadded; the functions of a
-/// pixel's index are worked out as the planes are laid out).
-pub struct Statics<'a, G, T> {
-    pub depth: &'a [f32],
-    pub normal: &'a [Vec3],
+/// One image row of the features' planes, which [`Planes::load_statics_rows`] gives to its
+/// caller.
+pub struct StaticRow<'a> {
+    row: &'a mut [f32],
+    grid: Grid,
+}
+
+impl StaticRow<'_> {
+    fn plane(&mut self, p: usize) -> &mut [f32] {
+        &mut self.row[plane(&self.grid, p)]
+    }
+
+    /// Depth along the view axis.
+    pub fn depth(&mut self) -> &mut [f32] {
+        self.plane(Z)
+    }
+
     /// |grad z|.
-    pub gradient: G,
-    /// The sky and light sources: passed through, nobody's neighbour.
-    pub through: T,
+    pub fn gradient(&mut self) -> &mut [f32] {
+        self.plane(G)
+    }
+
+    /// 1 where the pixel passes through (the sky and light sources: nobody's neighbour), else 0.
+    pub fn through(&mut self) -> &mut [f32] {
+        self.plane(THROUGH)
+    }
+
+    /// Component `k` of the normal (0 where the pixel passes through).
+    pub fn normal(&mut self, k: usize) -> &mut [f32] {
+        self.plane(NX + k)
+    }
+}
+
+/// One image row of the current light's planes and of the plane of the pixels that pass
+/// through, which [`Planes::for_light_rows`] gives to its caller.
+pub struct LightView<'a> {
+    light: &'a [f32],
+    statics: &'a [f32],
+    grid: Grid,
+    fixed: Grid,
+    /// The signals laid out (1 or 2).
+    pub signals: usize,
+}
+
+impl LightView<'_> {
+    /// Channel `k` of signal `s`'s light.
+    pub fn light(&self, s: usize, k: usize) -> &[f32] {
+        &self.light[plane(&self.grid, L + 3 * s + k)]
+    }
+
+    /// 1 where the pixel passes through, else 0.
+    pub fn through(&self) -> &[f32] {
+        &self.statics[plane(&self.fixed, THROUGH)]
+    }
 }
 
 impl Planes {
@@ -215,6 +263,16 @@ impl Planes {
             (self.fixed, self.moving) = (fixed, moving);
             self.statics.clear();
             self.statics.resize(fixed.len(), 0.0);
+            // The blur is (1/4, 1/2, 1/4) across times the same down: its weights inside the
+            // image sum to the product of the two (exactly: sixteenths).
+            let inside = |c: usize, n: usize| {
+                1.0 - if c == 0 { 0.25 } else { 0.0 } - if c + 1 == n { 0.25 } else { 0.0 }
+            };
+            fixed.for_rows(&mut self.statics, |y, row| {
+                for (x, sum) in row[plane(&fixed, SUM)][..width].iter_mut().enumerate() {
+                    *sum = inside(x, width) * inside(y as usize, height);
+                }
+            });
             for buffer in [&mut self.current, &mut self.next] {
                 buffer.clear();
                 buffer.resize(moving.len(), 0.0);
@@ -222,56 +280,12 @@ impl Planes {
         }
     }
 
-    /// Lays out this frame's features (after [`Self::layout`]).
-    pub fn load_statics<G, T>(&mut self, f: &Statics<G, T>)
-    where
-        G: Fn(usize) -> f32 + Sync,
-        T: Fn(usize) -> bool + Sync,
-    {
+    /// Lays out this frame's features row by row (after [`Self::layout`]): `f(y, row)` writes
+    /// image row `y`'s.
+    pub fn load_statics_rows(&mut self, f: impl Fn(usize, StaticRow) + Sync) {
         let fixed = self.fixed;
-        let (w, h, pad) = (fixed.width, fixed.height, fixed.pad);
         fixed.for_rows(&mut self.statics, |y, row| {
-            for x in 0..w {
-                let i = y as usize * w + x;
-                let at = |p: usize| p * fixed.pitch + pad + x;
-                row[at(Z)] = f.depth[i];
-                row[at(G)] = (f.gradient)(i);
-                // The blur is (1/4, 1/2, 1/4) across times the same down: its weights inside
-                // the image sum to the product of the two (exactly: sixteenths).
-                let inside = |c: usize, n: usize| {
-                    1.0 - if c == 0 { 0.25 } else { 0.0 } - if c + 1 == n { 0.25 } else { 0.0 }
-                };
-                row[at(SUM)] = inside(x, w) * inside(y as usize, h);
-                let through = (f.through)(i);
-                row[at(THROUGH)] = if through { 1.0 } else { 0.0 };
-                let n = if through { Vec3::ZERO } else { f.normal[i] };
-                for k in 0..3 {
-                    row[at(NX + k)] = n[k];
-                }
-            }
-        });
-    }
-
-    /// Lays out each pixel's light and luminance variance (the first [`Self::layout`]'s
-    /// `signals` of them), `light(i, extra[i])` of pixel `i` (row-major), which may write
-    /// `extra` (one entry a pixel).
-    pub fn load_light<T: Send>(
-        &mut self,
-        extra: &mut [T],
-        light: impl Fn(usize, &mut T) -> ([Vec3; 2], [f32; 2]) + Sync,
-    ) {
-        let w = self.moving.width;
-        self.load_light_rows(extra, |y, extra, mut row| {
-            for (x, e) in extra.iter_mut().enumerate() {
-                let (l, variance) = light(y * w + x, e);
-                for (s, l) in l.iter().enumerate().take(row.signals) {
-                    for (k, &c) in l.to_array().iter().enumerate() {
-                        row.light(s, k)[x] = c;
-                    }
-                    row.variance(s)[x] = variance[s];
-                    row.luminance(s)[x] = luminance(*l);
-                }
-            }
+            f(y as usize, StaticRow { row, grid: fixed })
         });
     }
 
@@ -293,8 +307,7 @@ impl Planes {
             .map(|(y, (row, extra))| {
                 let row = LightRow {
                     row,
-                    pitch: g.pitch,
-                    pad,
+                    grid: g,
                     signals,
                 };
                 f(y, extra, row)
@@ -328,33 +341,40 @@ impl Planes {
     /// Gives every pixel's current light to `f(&mut out[i], light)` (row-major, one entry a
     /// pixel; the second signal zero when one is filtered).
     pub fn put_light<T: Send>(&self, out: &mut [T], f: impl Fn(&mut T, [Vec3; 2]) + Sync) {
-        self.for_light(out, |_, o, light| f(o, light));
+        self.for_light_rows(out, |_, row, view| {
+            let c = |s: usize, k: usize| &view.light(s, k)[..row.len()];
+            let first = [c(0, 0), c(0, 1), c(0, 2)];
+            let second = (view.signals == 2).then(|| [c(1, 0), c(1, 1), c(1, 2)]);
+            for (x, o) in row.iter_mut().enumerate() {
+                let at = |p: [&[f32]; 3]| Vec3::new(p[0][x], p[1][x], p[2][x]);
+                f(o, [at(first), second.map_or(Vec3::ZERO, at)]);
+            }
+        });
     }
 
-    /// `f(i, light)` of every pixel `i` (row-major) and its current light, into `out` (one
-    /// entry a pixel; the second signal zero when one is filtered).
-    pub fn map_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, [Vec3; 2]) -> T + Sync) {
-        self.for_light(out, |i, o, light| *o = f(i, light));
-    }
-
-    /// `f(i, &mut out[i], light)` of every pixel `i` (row-major) and its current light.
-    fn for_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, &mut T, [Vec3; 2]) + Sync) {
-        let g = self.moving;
-        let signals = self.signals;
+    /// `f(y, out_row, view)` of every image row `y`, the row's part of `out` (one entry a
+    /// pixel) and a view of its current light.
+    pub fn for_light_rows<T: Send>(
+        &self,
+        out: &mut [T],
+        f: impl Fn(usize, &mut [T], LightView) + Sync,
+    ) {
+        let (g, fixed) = (self.moving, self.fixed);
         out.par_chunks_mut(g.width)
             .enumerate()
             .for_each(|(y, row)| {
-                let at = |p: usize| &self.current[g.at(0, y as i64, p)..][..g.width];
-                let planes: [&[f32]; 6] = std::array::from_fn(|p| at(L + p.min(3 * signals - 1)));
-                for (x, o) in row.iter_mut().enumerate() {
-                    let c = |p: usize| planes[p][x];
-                    let second = if signals == 2 {
-                        Vec3::new(c(3), c(4), c(5))
-                    } else {
-                        Vec3::ZERO
-                    };
-                    f(y * g.width + x, o, [Vec3::new(c(0), c(1), c(2)), second]);
-                }
+                let (py, pf) = (
+                    g.at(-(g.pad as i64), y as i64, 0),
+                    fixed.at(-(g.pad as i64), y as i64, 0),
+                );
+                let view = LightView {
+                    light: &self.current[py..py + g.row()],
+                    statics: &self.statics[pf..pf + fixed.row()],
+                    grid: g,
+                    fixed,
+                    signals: self.signals,
+                };
+                f(y, row, view)
             });
     }
 

@@ -51,8 +51,8 @@ use pathlight_core::color::{luminance, LUMINANCE};
 use rayon::prelude::*;
 
 use crate::atrous::{
-    flush_variance, flush_variance_lanes, normal_weight, spline, LightRow, Planes, Statics, BLUR,
-    MAX_PAD, MIN_WEIGHT,
+    flush_variance, flush_variance_lanes, normal_weight, spline, LightRow, LightView, Planes,
+    StaticRow, BLUR, MAX_PAD, MIN_WEIGHT,
 };
 use crate::exp::exp_neg;
 use crate::features::demodulator;
@@ -201,40 +201,27 @@ impl Svgf {
         self.next.resize(n, State::default());
         let pad = 2usize << iterations.saturating_sub(1);
         let previous = &self.state;
-        if pad <= MAX_PAD && !self.scalar {
-            // The temporal pass, the variance and the depth gradient worked out as the planes
-            // are laid out: the integrated light straight into them.
+        // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
+        if pad <= MAX_PAD && !self.scalar && n < 1 << 24 {
+            // The features, the temporal pass, the variance and the depth gradient worked out
+            // in lanes as the planes are laid out: the integrated light straight into them.
             self.planes
                 .layout(f.width, f.height, pad / 2, signals(split));
-            self.planes.load_statics(&Statics {
-                depth: f.depth,
-                normal: f.normal,
-                gradient: |i| depth_gradient(f, i),
-                through: |i| passes_through(f, i),
-            });
+            let isa = self.planes.isa;
+            self.planes
+                .load_statics_rows(|y, row| dispatch(isa, Features { f, y, row }));
             // The rows with pixels whose history is short.
-            let rows = if n < 1 << 24 {
-                // In lanes (the pixels' indices are exact in an `f32`).
-                let isa = self.planes.isa;
-                self.planes.load_light_rows(&mut self.next, |y, next, row| {
-                    let t = Temporal {
-                        f,
-                        previous,
-                        split,
-                        y,
-                        row,
-                        next,
-                    };
-                    dispatch(isa, t)
-                })
-            } else {
-                self.planes.load_light(&mut self.next, |i, s| {
-                    let light;
-                    (light, *s) = integrate(f, previous, split, i);
-                    (light, variance(s.m))
-                });
-                vec![true; f.height]
-            };
+            let rows = self.planes.load_light_rows(&mut self.next, |y, next, row| {
+                let t = Temporal {
+                    f,
+                    previous,
+                    split,
+                    y,
+                    row,
+                    next,
+                };
+                dispatch(isa, t)
+            });
             // Where the history is short, the variance from the neighbourhood's moments.
             let next = &self.next;
             self.planes.amend_variance(&rows, |i| {
@@ -251,8 +238,9 @@ impl Svgf {
                 self.planes
                     .put_light(&mut self.next, |s, light| s.light = light);
             }
-            self.planes
-                .map_light(out, |i, [d, n]| remodulate(f, i, d + n));
+            self.planes.for_light_rows(out, |y, out, view| {
+                dispatch(isa, Output { f, y, view, out })
+            });
         } else {
             // Temporal accumulation into `light` and `next`.
             self.light.resize(n, [Vec3::ZERO; 2]);
@@ -583,22 +571,13 @@ impl Temporal<'_, '_> {
                 V::gather(motion.add(1), index, 2, valid),
             )
         };
-        let mut emitter = [0.0f32; LANES];
-        for (e, &b) in emitter.iter_mut().zip(&f.emitter[i0..i0 + n]) {
-            *e = if b { 1.0 } else { 0.0 };
-        }
-        // SAFETY: `emitter` has `LANES` lanes.
-        let emitter = unsafe { V::load(emitter.as_ptr()) };
         let infinity = splat(f32::INFINITY);
         // Not passed through (`passes_through`).
-        let live = V::and(
-            V::and(valid, infinity.gt(depth.abs())),
-            splat(0.5).gt(emitter),
-        );
+        let live = V::and(valid, live_lanes(f, i0, n, depth));
 
         let mut cur = [[zero; 3]; 2];
         for k in 0..3 {
-            let a = V::select(albedo[k].ge(splat(0.01)), albedo[k], splat(0.01));
+            let a = demodulator_lanes(albedo[k]);
             if self.split {
                 cur[0][k] = direct[k] / a;
                 cur[1][k] = indirect[k] / a;
@@ -731,6 +710,168 @@ impl Temporal<'_, '_> {
 unsafe fn field<V: F32xN>(base: *const f32, k: usize, q: V, m: V::Mask) -> V {
     // SAFETY: the caller's.
     unsafe { V::gather(base.add(k), q, RECORD, m) }
+}
+
+/// The features' planes of row `y` in lanes, [`F32xN::N`] pixels at a time: depth, |grad z|
+/// ([`depth_gradient`]), whether the pixel passes through ([`passes_through`]), the normal (0
+/// where it does). The same arithmetic, so the same numbers. (No closures here: see
+/// `simd::exp_neg`.)
+struct Features<'a, 'f> {
+    f: &'a SvgfFrame<'f>,
+    y: usize,
+    row: StaticRow<'a>,
+}
+
+impl Kernel<()> for Features<'_, '_> {
+    #[inline(always)]
+    fn run<V: F32xN>(mut self) {
+        let mut x0 = 0;
+        while x0 < self.f.width {
+            self.group::<V>(x0);
+            x0 += V::N;
+        }
+    }
+}
+
+impl Features<'_, '_> {
+    #[inline(always)]
+    fn group<V: F32xN>(&mut self, x0: usize) {
+        let f = self.f;
+        let (w, h, y) = (f.width, f.height, self.y);
+        let n = V::N.min(w - x0);
+        let splat = V::splat;
+        let (zero, one) = (splat(0.0), splat(1.0));
+        let lane = iota::<V>();
+        let valid = splat(n as f32).gt(lane);
+        let x = splat(x0 as f32) + lane;
+        let last = splat((w - 1) as f32);
+        let right = V::select(x.ge(last), last, x + one);
+        let left = V::select(one.gt(x), zero, x - one);
+        let at = splat((y * w) as f32);
+        let up = splat(((y + 1).min(h - 1) * w) as f32);
+        let down = splat((y.saturating_sub(1) * w) as f32);
+        let base = f.depth.as_ptr();
+        // SAFETY: the lanes where `valid` index pixels of the image (the columns clamped to
+        // it, the rows too).
+        let (depth, r, l, u, d) = unsafe {
+            (
+                V::gather(base, at + x, 1, valid),
+                V::gather(base, at + right, 1, valid),
+                V::gather(base, at + left, 1, valid),
+                V::gather(base, up + x, 1, valid),
+                V::gather(base, down + x, 1, valid),
+            )
+        };
+        let (dx, dy) = ((r - l) * splat(0.5), (u - d) * splat(0.5));
+        let gz = max(dx.abs(), dy.abs());
+        let gz = V::select(splat(f32::INFINITY).gt(gz.abs()), gz, zero);
+        let live = live_lanes(f, y * w + x0, n, depth);
+        let normal = gather3(f.normal, at + x, valid);
+        store_first(depth, n, &mut self.row.depth()[x0..]);
+        store_first(gz, n, &mut self.row.gradient()[x0..]);
+        store_first(V::select(live, zero, one), n, &mut self.row.through()[x0..]);
+        for (k, c) in normal.into_iter().enumerate() {
+            store_first(V::select(live, c, zero), n, &mut self.row.normal(k)[x0..]);
+        }
+    }
+}
+
+/// The output of row `y` in lanes, [`F32xN::N`] pixels at a time: the filtered light times
+/// the albedo ([`remodulate`]), or this frame's light where the pixel passes through. The same
+/// arithmetic, so the same numbers. (No closures here: see `simd::exp_neg`.)
+struct Output<'a, 'f> {
+    f: &'a SvgfFrame<'f>,
+    y: usize,
+    view: LightView<'a>,
+    out: &'a mut [Vec3],
+}
+
+impl Kernel<()> for Output<'_, '_> {
+    #[inline(always)]
+    fn run<V: F32xN>(mut self) {
+        let mut x0 = 0;
+        while x0 < self.f.width {
+            self.group::<V>(x0);
+            x0 += V::N;
+        }
+    }
+}
+
+impl Output<'_, '_> {
+    #[inline(always)]
+    fn group<V: F32xN>(&mut self, x0: usize) {
+        let f = self.f;
+        let i0 = self.y * f.width + x0;
+        let n = V::N.min(f.width - x0);
+        let splat = V::splat;
+        let valid = splat(n as f32).gt(iota::<V>());
+        let index = splat(i0 as f32) + iota::<V>();
+        let mut light = [splat(0.0); 3];
+        for (k, light) in light.iter_mut().enumerate() {
+            *light = load_first(&self.view.light(0, k)[x0..]);
+            if self.view.signals == 2 {
+                *light = *light + load_first(&self.view.light(1, k)[x0..]);
+            }
+        }
+        let through = load_first::<V>(&self.view.through()[x0..]).ne(splat(0.0));
+        let albedo = gather3(f.albedo, index, valid);
+        let mut out = [splat(0.0); 3];
+        for ((out, &light), &albedo) in out.iter_mut().zip(&light).zip(&albedo) {
+            *out = light * demodulator_lanes(albedo);
+        }
+        let through = V::and(through, valid);
+        if V::any(through) {
+            let (direct, indirect) = (
+                gather3(f.direct, index, through),
+                gather3(f.indirect, index, through),
+            );
+            for ((out, &d), &i) in out.iter_mut().zip(&direct).zip(&indirect) {
+                *out = V::select(through, d + i, *out);
+            }
+        }
+        let (r, g, b) = (out[0].to_array(), out[1].to_array(), out[2].to_array());
+        for (j, o) in self.out[x0..x0 + n].iter_mut().enumerate() {
+            *o = Vec3::new(r[j], g[j], b[j]);
+        }
+    }
+}
+
+/// The first [`F32xN::N`] values of `plane` (a padded row's plane, which has them).
+#[inline(always)]
+fn load_first<V: F32xN>(plane: &[f32]) -> V {
+    assert!(V::N <= plane.len());
+    // SAFETY: checked just above.
+    unsafe { V::load(plane.as_ptr()) }
+}
+
+/// `f32::max` in lanes (a NaN lane gives the other one).
+#[inline(always)]
+fn max<V: F32xN>(a: V, b: V) -> V {
+    let m = V::select(a.ge(b), a, b);
+    V::select(m.ne(m), a, m)
+}
+
+/// [`demodulator`] of one channel in lanes.
+#[inline(always)]
+fn demodulator_lanes<V: F32xN>(albedo: V) -> V {
+    let floor = V::splat(0.01);
+    V::select(albedo.ge(floor), albedo, floor)
+}
+
+/// Whether the `n` pixels from `i0` on (whose depths are `depth`) do not pass through
+/// ([`passes_through`]), in lanes (the lanes past `n`: as their depths say).
+#[inline(always)]
+fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask {
+    let mut emitter = [0.0f32; LANES];
+    for (e, &b) in emitter.iter_mut().zip(&f.emitter[i0..i0 + n]) {
+        *e = if b { 1.0 } else { 0.0 };
+    }
+    // SAFETY: `emitter` has `LANES` lanes.
+    let emitter = unsafe { V::load(emitter.as_ptr()) };
+    V::and(
+        V::splat(f32::INFINITY).gt(depth.abs()),
+        V::splat(0.5).gt(emitter),
+    )
 }
 
 /// The three channels of `buffer`'s pixels `index` in the lanes where `m` (0 in the others).
