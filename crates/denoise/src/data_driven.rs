@@ -436,26 +436,35 @@ impl FillRows<'_> {
                     // luminance (demodulated): from the pixel's own variance where the caller
                     // knows it, else from its neighbourhood's (`neighbourhood_errors`). At most
                     // 100 / (1 + L): a pixel without noise is not a wall.
-                    let la = luminance(a);
-                    let floor = 0.01 * (1.0 + lum);
-                    [0, 1].map(|k| {
-                        let v = variance[x][k];
-                        let e = if known(v) && !self.all_errors {
-                            (v / (la * la)).sqrt()
-                        } else {
-                            errors[x][k]
-                        };
-                        let e = e.max(floor);
-                        if self.sum {
-                            e * e
-                        } else {
-                            1.0 / e
-                        }
-                    })
+                    // (Two calls, not `[0, 1].map` with a closure: the closure was compiled
+                    // apart, without the processor's features, and called per pixel.)
+                    let (la, floor) = (luminance(a), 0.01 * (1.0 + lum));
+                    [
+                        self.scale(variance[x][0], errors[x][0], la, floor),
+                        self.scale(variance[x][1], errors[x][1], la, floor),
+                    ]
                 }
             };
             row[SCALE_D * pitch + at] = zero_if_invalid(sd);
             row[SCALE_I * pitch + at] = zero_if_invalid(si);
+        }
+    }
+
+    /// A signal's colour scale from its luminance variance `v` (if known) or its
+    /// neighbourhood's standard error `error`, the albedo's luminance `la` and the error's
+    /// `floor` (`ColourUnits::Variance`).
+    #[inline(always)]
+    fn scale(&self, v: f32, error: f32, la: f32, floor: f32) -> f32 {
+        let e = if known(v) && !self.all_errors {
+            (v / (la * la)).sqrt()
+        } else {
+            error
+        };
+        let e = e.max(floor);
+        if self.sum {
+            e * e
+        } else {
+            1.0 / e
         }
     }
 }
