@@ -80,9 +80,11 @@ use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig};
-use crate::simd::{dispatch, exp_neg, F32xN, Isa, Kernel, LANES};
+use crate::simd::{
+    dispatch, exp_neg, gather3, iota, luminance_lanes, store_first, F32xN, Isa, Kernel, LANES,
+};
 
-use crate::features::{demodulator, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
+use crate::features::{demodulator, demodulator_lanes, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::FilterError;
 
 /// Centre pixels filtered together ([`crate::simd`]).
@@ -250,6 +252,7 @@ impl DataDriven {
             demodulate,
             all_errors: blur,
             sum,
+            isa: self.isa,
         };
         let r = layout.radius;
         self.planes[r * layout.row..(r + f.height) * layout.row]
@@ -365,107 +368,156 @@ struct FillRows<'a> {
     all_errors: bool,
     /// The colour scales are squared errors ([`Scales::sum`]), not their inverses.
     sum: bool,
+    isa: Isa,
 }
 
 impl FillRows<'_> {
     fn row(&self, y: usize, row: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the processor has AVX-512 (checked just above).
-                return unsafe { self.row_avx512(y, row) };
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor has AVX2 (checked just above).
-                return unsafe { self.row_avx2(y, row) };
-            }
-        }
-        self.row_lanes(y, row);
+        dispatch(self.isa, FillRow { fill: self, y, row });
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn row_avx512(&self, y: usize, row: &mut [f32]) {
-        self.row_lanes(y, row);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn row_avx2(&self, y: usize, row: &mut [f32]) {
-        self.row_lanes(y, row);
-    }
-
-    #[inline(always)]
-    fn row_lanes(&self, y: usize, row: &mut [f32]) {
-        let (f, w, l) = (self.f, self.f.width, self.layout);
-        let span = y * w..(y + 1) * w;
-        let (direct, indirect) = (&f.direct[span.clone()], &f.indirect[span.clone()]);
-        let (depth, normal) = (&f.depth[span.clone()], &f.normal[span.clone()]);
-        let (albedo, texture2) = (&f.albedo[span.clone()], &f.texture2[span.clone()]);
-        let (variance, errors) = (&f.light_variance[span.clone()], &self.errors[span]);
-        let (row, pitch) = (&mut row[..PLANES * l.pitch], l.pitch);
-        for x in 0..w {
-            let a = divisor(albedo[x], self.demodulate);
-            let inv = a.recip();
-            let values = [
-                normal[x],
-                albedo[x],
-                texture2[x],
-                direct[x] * inv,
-                indirect[x] * inv,
-            ];
-            let valid = valid_pixel(
-                depth[x],
-                [normal[x], albedo[x], texture2[x], direct[x], indirect[x]],
-            );
-            let zero_if_invalid = |v: f32| if valid { v } else { 0.0 };
-            let at = x + l.radius;
-            row[VALID * pitch + at] = zero_if_invalid(1.0);
-            row[D * pitch + at] = zero_if_invalid(depth[x]);
-            for (plane, v) in [N, T, T2, F0, F1].into_iter().zip(values) {
-                for c in 0..3 {
-                    row[(plane + c) * pitch + at] = zero_if_invalid(v[c]);
-                }
-            }
-            let lum = luminance(values[3] + values[4]).max(0.0);
-            let [sd, si] = match self.units {
-                ColourUnits::Linear => [1.0; 2],
-                ColourUnits::Relative => [1.0 / (1.0 + lum); 2],
-                ColourUnits::Variance => {
-                    // The standard error of the mean of the direct and indirect light's
-                    // luminance (demodulated): from the pixel's own variance where the caller
-                    // knows it, else from its neighbourhood's (`neighbourhood_errors`). At most
-                    // 100 / (1 + L): a pixel without noise is not a wall.
-                    // (Two calls, not `[0, 1].map` with a closure: the closure was compiled
-                    // apart, without the processor's features, and called per pixel.)
-                    let (la, floor) = (luminance(a), 0.01 * (1.0 + lum));
-                    [
-                        self.scale(variance[x][0], errors[x][0], la, floor),
-                        self.scale(variance[x][1], errors[x][1], la, floor),
-                    ]
-                }
-            };
-            row[SCALE_D * pitch + at] = zero_if_invalid(sd);
-            row[SCALE_I * pitch + at] = zero_if_invalid(si);
-        }
-    }
-
-    /// A signal's colour scale from its luminance variance `v` (if known) or its
+    /// A signal's colour scale from its luminance variance `v` (where [`known`]) or its
     /// neighbourhood's standard error `error`, the albedo's luminance `la` and the error's
-    /// `floor` (`ColourUnits::Variance`).
+    /// `floor` (`ColourUnits::Variance`), in lanes.
     #[inline(always)]
-    fn scale(&self, v: f32, error: f32, la: f32, floor: f32) -> f32 {
-        let e = if known(v) && !self.all_errors {
-            (v / (la * la)).sqrt()
-        } else {
+    fn scale<V: F32xN>(&self, v: V, error: V, la: V, floor: V) -> V {
+        let known = V::and(V::splat(f32::INFINITY).gt(v.abs()), v.ge(V::splat(0.0)));
+        let own = (v / (la * la)).sqrt();
+        let e = if self.all_errors {
             error
+        } else {
+            V::select(known, own, error)
         };
-        let e = e.max(floor);
+        // `f32::max`: the floor where e is NaN.
+        let e = V::select(e.ge(floor), e, floor);
         if self.sum {
             e * e
         } else {
-            1.0 / e
+            V::splat(1.0) / e
         }
+    }
+}
+
+/// One row of [`FillRows`] in lanes, [`F32xN::N`] pixels at a time. (No closures here: see
+/// `simd::exp_neg`.)
+struct FillRow<'a, 'b> {
+    fill: &'a FillRows<'b>,
+    y: usize,
+    row: &'a mut [f32],
+}
+
+impl Kernel<()> for FillRow<'_, '_> {
+    #[inline(always)]
+    fn run<V: F32xN>(mut self) {
+        let mut x0 = 0;
+        while x0 < self.fill.f.width {
+            self.group::<V>(x0);
+            x0 += V::N;
+        }
+    }
+}
+
+impl FillRow<'_, '_> {
+    #[inline(always)]
+    fn group<V: F32xN>(&mut self, x0: usize) {
+        let (s, f) = (self.fill, self.fill.f);
+        let w = f.width;
+        let n = V::N.min(w - x0);
+        let splat = V::splat;
+        let (zero, one) = (splat(0.0), splat(1.0));
+        let lanes = splat(n as f32).gt(iota::<V>());
+        let index = splat((self.y * w + x0) as f32) + iota::<V>();
+        // SAFETY: the lanes where `lanes` index this row's pixels (every buffer has the
+        // image's; the variances and errors two values a pixel).
+        let (depth, vectors, variance, errors) = unsafe {
+            let (v, e) = (
+                f.light_variance.as_ptr().cast::<f32>(),
+                s.errors.as_ptr().cast::<f32>(),
+            );
+            (
+                V::gather(f.depth.as_ptr(), index, 1, lanes),
+                [
+                    gather3(f.normal, index, lanes),
+                    gather3(f.albedo, index, lanes),
+                    gather3(f.texture2, index, lanes),
+                    gather3(f.direct, index, lanes),
+                    gather3(f.indirect, index, lanes),
+                ],
+                [
+                    V::gather(v, index, 2, lanes),
+                    V::gather(v.add(1), index, 2, lanes),
+                ],
+                [
+                    V::gather(e, index, 2, lanes),
+                    V::gather(e.add(1), index, 2, lanes),
+                ],
+            )
+        };
+        // `valid_pixel`.
+        let infinity = splat(f32::INFINITY);
+        let mut valid = V::and(lanes, infinity.gt(depth.abs()));
+        for c in vectors.iter().flatten() {
+            valid = V::and(valid, infinity.gt(c.abs()));
+        }
+        let [normal, albedo, texture2, direct, indirect] = vectors;
+        let mut a = [one; 3];
+        if s.demodulate {
+            for (a, &albedo) in a.iter_mut().zip(&albedo) {
+                *a = demodulator_lanes(albedo);
+            }
+        }
+        let (mut direct, mut indirect) = (direct, indirect);
+        for k in 0..3 {
+            let inv = one / a[k];
+            direct[k] = direct[k] * inv;
+            indirect[k] = indirect[k] * inv;
+        }
+        let put = (x0, n, valid);
+        self.put(put, VALID, one);
+        self.put(put, D, depth);
+        for (plane, v) in [N, T, T2, F0, F1]
+            .into_iter()
+            .zip([normal, albedo, texture2, direct, indirect])
+        {
+            for (c, v) in v.into_iter().enumerate() {
+                self.put(put, plane + c, v);
+            }
+        }
+        let sum = [
+            direct[0] + indirect[0],
+            direct[1] + indirect[1],
+            direct[2] + indirect[2],
+        ];
+        let lum = luminance_lanes(sum);
+        let lum = V::select(lum.ge(zero), lum, zero);
+        let (sd, si) = match s.units {
+            ColourUnits::Linear => (one, one),
+            ColourUnits::Relative => {
+                let r = one / (one + lum);
+                (r, r)
+            }
+            ColourUnits::Variance => {
+                // The standard error of the mean of the direct and indirect light's
+                // luminance (demodulated): from the pixel's own variance where the caller
+                // knows it, else from its neighbourhood's (`neighbourhood_errors`). At most
+                // 100 / (1 + L): a pixel without noise is not a wall.
+                let (la, floor) = (luminance_lanes(a), splat(0.01) * (one + lum));
+                (
+                    s.scale(variance[0], errors[0], la, floor),
+                    s.scale(variance[1], errors[1], la, floor),
+                )
+            }
+        };
+        self.put(put, SCALE_D, sd);
+        self.put(put, SCALE_I, si);
+    }
+
+    /// Stores `v` (0 where not `valid`) into `plane` at the `n` pixels from `x0` on.
+    #[inline(always)]
+    fn put<V: F32xN>(&mut self, (x0, n, valid): (usize, usize, V::Mask), plane: usize, v: V) {
+        let l = self.fill.layout;
+        let at = plane * l.pitch + x0 + l.radius;
+        store_first(V::select(valid, v, V::splat(0.0)), n, &mut self.row[at..]);
     }
 }
 

@@ -11,6 +11,7 @@
 
 use glam::Vec3;
 
+use crate::simd::F32xN;
 use crate::FilterError;
 
 /// Indices into [`Features::variance`].
@@ -77,4 +78,11 @@ impl Features<'_> {
 /// black surface's light is then filtered as it is, near enough).
 pub(crate) fn demodulator(albedo: Vec3) -> Vec3 {
     albedo.max(Vec3::splat(0.01))
+}
+
+/// [`demodulator`] of one channel in lanes.
+#[inline(always)]
+pub(crate) fn demodulator_lanes<V: F32xN>(albedo: V) -> V {
+    let floor = V::splat(0.01);
+    V::select(albedo.ge(floor), albedo, floor)
 }

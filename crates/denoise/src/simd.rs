@@ -18,6 +18,9 @@
 use std::arch::x86_64::*;
 use std::ops::{Add, Div, Mul, Sub};
 
+use glam::Vec3;
+use pathlight_core::color::LUMINANCE;
+
 /// The most lanes of one value (the width the filters' planes are padded for).
 pub const LANES: usize = 16;
 
@@ -147,6 +150,42 @@ pub fn iota<V: F32xN>() -> V {
     };
     // SAFETY: `IOTA` has `LANES` lanes.
     unsafe { V::load(IOTA.as_ptr()) }
+}
+
+/// The first [`F32xN::N`] values of `plane` (which has them).
+#[inline(always)]
+pub fn load_first<V: F32xN>(plane: &[f32]) -> V {
+    assert!(V::N <= plane.len());
+    // SAFETY: checked just above.
+    unsafe { V::load(plane.as_ptr()) }
+}
+
+/// `f32::max` in lanes (a NaN lane gives the other one).
+#[inline(always)]
+pub fn max<V: F32xN>(a: V, b: V) -> V {
+    let m = V::select(a.ge(b), a, b);
+    V::select(m.ne(m), a, m)
+}
+
+/// The three channels of `buffer`'s pixels `index` in the lanes where `m` (0 in the others).
+///
+/// # Safety
+/// The lanes where `m` index pixels of `buffer` (whole numbers below its length).
+#[inline(always)]
+pub unsafe fn gather3<V: F32xN>(buffer: &[Vec3], index: V, m: V::Mask) -> [V; 3] {
+    let base = buffer.as_ptr().cast::<f32>();
+    let mut c = [V::splat(0.0); 3];
+    for (k, c) in c.iter_mut().enumerate() {
+        // SAFETY: the caller's (a `Vec3` is three `f32`s).
+        *c = unsafe { V::gather(base.add(k), index, 3, m) };
+    }
+    c
+}
+
+/// [`pathlight_core::color::luminance`] in lanes (the same products and sums).
+#[inline(always)]
+pub fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
+    V::splat(LUMINANCE[0]) * c[0] + V::splat(LUMINANCE[1]) * c[1] + V::splat(LUMINANCE[2]) * c[2]
 }
 
 /// `e^x` for `x <= 0` in lanes: [`crate::exp::exp_neg`]'s method and polynomial.

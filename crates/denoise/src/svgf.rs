@@ -47,7 +47,7 @@
 //! indices an `f32` lane does not hold exactly).
 
 use glam::{Vec2, Vec3};
-use pathlight_core::color::{luminance, LUMINANCE};
+use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::atrous::{
@@ -55,8 +55,10 @@ use crate::atrous::{
     StaticRow, BLUR, MAX_PAD, MIN_WEIGHT,
 };
 use crate::exp::exp_neg;
-use crate::features::demodulator;
-use crate::simd::{dispatch, iota, store_first, F32xN, Kernel, LANES};
+use crate::features::{demodulator, demodulator_lanes};
+use crate::simd::{
+    dispatch, gather3, iota, load_first, luminance_lanes, max, store_first, F32xN, Kernel, LANES,
+};
 use crate::FilterError;
 
 /// One frame's inputs, per pixel in row-major order.
@@ -556,13 +558,17 @@ impl Temporal<'_, '_> {
         let lane = iota::<V>();
         let valid = splat(n as f32).gt(lane);
         let index = splat(i0 as f32) + lane;
-        let (albedo, direct, indirect, normal) = (
-            gather3(f.albedo, index, valid),
-            gather3(f.direct, index, valid),
-            gather3(f.indirect, index, valid),
-            gather3(f.normal, index, valid),
-        );
-        // SAFETY: the lanes where `valid` index this row's pixels.
+        // SAFETY: the lanes where `valid` index this row's pixels (every buffer has the
+        // image's).
+        let (albedo, direct, indirect, normal) = unsafe {
+            (
+                gather3(f.albedo, index, valid),
+                gather3(f.direct, index, valid),
+                gather3(f.indirect, index, valid),
+                gather3(f.normal, index, valid),
+            )
+        };
+        // SAFETY: as above.
         let (depth, mx, my) = unsafe {
             let motion = f.motion.as_ptr().cast::<f32>();
             (
@@ -766,7 +772,8 @@ impl Features<'_, '_> {
         let gz = max(dx.abs(), dy.abs());
         let gz = V::select(splat(f32::INFINITY).gt(gz.abs()), gz, zero);
         let live = live_lanes(f, y * w + x0, n, depth);
-        let normal = gather3(f.normal, at + x, valid);
+        // SAFETY: the lanes where `valid` index this row's pixels.
+        let normal = unsafe { gather3(f.normal, at + x, valid) };
         store_first(depth, n, &mut self.row.depth()[x0..]);
         store_first(gz, n, &mut self.row.gradient()[x0..]);
         store_first(V::select(live, zero, one), n, &mut self.row.through()[x0..]);
@@ -814,17 +821,21 @@ impl Output<'_, '_> {
             }
         }
         let through = load_first::<V>(&self.view.through()[x0..]).ne(splat(0.0));
-        let albedo = gather3(f.albedo, index, valid);
+        // SAFETY: the lanes where `valid` index this row's pixels.
+        let albedo = unsafe { gather3(f.albedo, index, valid) };
         let mut out = [splat(0.0); 3];
         for ((out, &light), &albedo) in out.iter_mut().zip(&light).zip(&albedo) {
             *out = light * demodulator_lanes(albedo);
         }
         let through = V::and(through, valid);
         if V::any(through) {
-            let (direct, indirect) = (
-                gather3(f.direct, index, through),
-                gather3(f.indirect, index, through),
-            );
+            // SAFETY: the lanes where `through` (and `valid`) index this row's pixels.
+            let (direct, indirect) = unsafe {
+                (
+                    gather3(f.direct, index, through),
+                    gather3(f.indirect, index, through),
+                )
+            };
             for ((out, &d), &i) in out.iter_mut().zip(&direct).zip(&indirect) {
                 *out = V::select(through, d + i, *out);
             }
@@ -834,28 +845,6 @@ impl Output<'_, '_> {
             *o = Vec3::new(r[j], g[j], b[j]);
         }
     }
-}
-
-/// The first [`F32xN::N`] values of `plane` (a padded row's plane, which has them).
-#[inline(always)]
-fn load_first<V: F32xN>(plane: &[f32]) -> V {
-    assert!(V::N <= plane.len());
-    // SAFETY: checked just above.
-    unsafe { V::load(plane.as_ptr()) }
-}
-
-/// `f32::max` in lanes (a NaN lane gives the other one).
-#[inline(always)]
-fn max<V: F32xN>(a: V, b: V) -> V {
-    let m = V::select(a.ge(b), a, b);
-    V::select(m.ne(m), a, m)
-}
-
-/// [`demodulator`] of one channel in lanes.
-#[inline(always)]
-fn demodulator_lanes<V: F32xN>(albedo: V) -> V {
-    let floor = V::splat(0.01);
-    V::select(albedo.ge(floor), albedo, floor)
 }
 
 /// Whether the `n` pixels from `i0` on (whose depths are `depth`) do not pass through
@@ -872,25 +861,6 @@ fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask
         V::splat(f32::INFINITY).gt(depth.abs()),
         V::splat(0.5).gt(emitter),
     )
-}
-
-/// The three channels of `buffer`'s pixels `index` in the lanes where `m` (0 in the others).
-#[inline(always)]
-fn gather3<V: F32xN>(buffer: &[Vec3], index: V, m: V::Mask) -> [V; 3] {
-    let base = buffer.as_ptr().cast::<f32>();
-    let mut c = [V::splat(0.0); 3];
-    for (k, c) in c.iter_mut().enumerate() {
-        // SAFETY: the caller's lanes where `m` index pixels of `buffer` (a `Vec3` is three
-        // `f32`s).
-        *c = unsafe { V::gather(base.add(k), index, 3, m) };
-    }
-    c
-}
-
-/// [`luminance`] in lanes (the same products and sums).
-#[inline(always)]
-fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
-    V::splat(LUMINANCE[0]) * c[0] + V::splat(LUMINANCE[1]) * c[1] + V::splat(LUMINANCE[2]) * c[2]
 }
 
 /// Pixel `i`'s history is under 4 frames: its variance comes from its neighbourhood.
