@@ -354,9 +354,9 @@ impl DataDriven {
 }
 
 /// One row of the padded planes from the features ([`DataDriven::fill_planes`]): the
-/// features of valid pixels, zeros (and validity 0) for the sky and bad pixels. Written over
-/// the row's slices without branches, so that the compiler vectorises it (AVX-512 or AVX2
-/// chosen at run time).
+/// features of valid pixels, zeros (and validity 0) for the sky and bad pixels, in lanes
+/// ([`FillRow`]; a per-pixel loop over the row's slices, left to the compiler to vectorise, was
+/// left scalar).
 struct FillRows<'a> {
     f: &'a Features<'a>,
     /// The neighbourhoods' standard errors, for the pixels whose variance is not known.
