@@ -81,7 +81,8 @@ use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig};
 use crate::simd::{
-    dispatch, exp_neg, gather3, iota, luminance_lanes, store_first, F32xN, Isa, Kernel, LANES,
+    dispatch, exp_neg, gather3, iota, luminance_lanes, store_first, ByGroups, F32xN, Groups, Isa,
+    Kernel, LANES,
 };
 
 use crate::features::{demodulator, demodulator_lanes, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
@@ -373,7 +374,7 @@ struct FillRows<'a> {
 
 impl FillRows<'_> {
     fn row(&self, y: usize, row: &mut [f32]) {
-        dispatch(self.isa, FillRow { fill: self, y, row });
+        dispatch(self.isa, ByGroups(FillRow { fill: self, y, row }));
     }
 
     /// A signal's colour scale from its luminance variance `v` (where [`known`]) or its
@@ -406,20 +407,13 @@ struct FillRow<'a, 'b> {
     row: &'a mut [f32],
 }
 
-impl Kernel<()> for FillRow<'_, '_> {
-    #[inline(always)]
-    fn run<V: F32xN>(mut self) {
-        let mut x0 = 0;
-        while x0 < self.fill.f.width {
-            self.group::<V>(x0);
-            x0 += V::N;
-        }
+impl Groups for FillRow<'_, '_> {
+    fn width(&self) -> usize {
+        self.fill.f.width
     }
-}
 
-impl FillRow<'_, '_> {
     #[inline(always)]
-    fn group<V: F32xN>(&mut self, x0: usize) {
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool {
         let (s, f) = (self.fill, self.fill.f);
         let w = f.width;
         let n = V::N.min(w - x0);
@@ -510,8 +504,11 @@ impl FillRow<'_, '_> {
         };
         self.put(put, SCALE_D, sd);
         self.put(put, SCALE_I, si);
+        false
     }
+}
 
+impl FillRow<'_, '_> {
     /// Stores `v` (0 where not `valid`) into `plane` at the `n` pixels from `x0` on.
     #[inline(always)]
     fn put<V: F32xN>(&mut self, (x0, n, valid): (usize, usize, V::Mask), plane: usize, v: V) {

@@ -111,6 +111,32 @@ pub trait Kernel<R> {
     fn run<V: F32xN>(self) -> R;
 }
 
+/// A row's work in groups of lanes: run by [`ByGroups`], a [`Kernel`] that takes the row's
+/// groups from left to right.
+pub trait Groups {
+    /// The row's pixels.
+    fn width(&self) -> usize;
+    /// The [`F32xN::N`] pixels from `x0` on (fewer at the row's end); a flag the row's groups
+    /// add up with `or`.
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool;
+}
+
+/// Runs a [`Groups`] over its row; whether some group gave `true`.
+pub struct ByGroups<G>(pub G);
+
+impl<G: Groups> Kernel<bool> for ByGroups<G> {
+    #[inline(always)]
+    fn run<V: F32xN>(mut self) -> bool {
+        let mut flag = false;
+        let mut x0 = 0;
+        while x0 < self.0.width() {
+            flag |= self.0.group::<V>(x0);
+            x0 += V::N;
+        }
+        flag
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,fma")]
 unsafe fn run_avx512<R>(f: impl Kernel<R>) -> R {

@@ -57,7 +57,8 @@ use crate::atrous::{
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
 use crate::simd::{
-    dispatch, gather3, iota, load_first, luminance_lanes, max, store_first, F32xN, Kernel, LANES,
+    dispatch, gather3, iota, load_first, luminance_lanes, max, store_first, ByGroups, F32xN,
+    Groups, LANES,
 };
 use crate::FilterError;
 
@@ -210,8 +211,9 @@ impl Svgf {
             self.planes
                 .layout(f.width, f.height, pad / 2, signals(split));
             let isa = self.planes.isa;
-            self.planes
-                .load_statics_rows(|y, row| dispatch(isa, Features { f, y, row }));
+            self.planes.load_statics_rows(|y, row| {
+                dispatch(isa, ByGroups(Features { f, y, row }));
+            });
             // The rows with pixels whose history is short.
             let rows = self.planes.load_light_rows(&mut self.next, |y, next, row| {
                 let t = Temporal {
@@ -222,7 +224,7 @@ impl Svgf {
                     row,
                     next,
                 };
-                dispatch(isa, t)
+                dispatch(isa, ByGroups(t))
             });
             // Where the history is short, the variance from the neighbourhood's moments.
             let next = &self.next;
@@ -241,7 +243,7 @@ impl Svgf {
                     .put_light(&mut self.next, |s, light| s.light = light);
             }
             self.planes.for_light_rows(out, |y, out, view| {
-                dispatch(isa, Output { f, y, view, out })
+                dispatch(isa, ByGroups(Output { f, y, view, out }));
             });
         } else {
             // Temporal accumulation into `light` and `next`.
@@ -523,19 +525,6 @@ struct Temporal<'a, 'f> {
     next: &'a mut [State],
 }
 
-impl Kernel<bool> for Temporal<'_, '_> {
-    #[inline(always)]
-    fn run<V: F32xN>(mut self) -> bool {
-        let mut short = false;
-        let mut x0 = 0;
-        while x0 < self.f.width {
-            short |= self.group::<V>(x0);
-            x0 += V::N;
-        }
-        short
-    }
-}
-
 /// The record's fields, in `f32`s from its start.
 const LIGHT: usize = 0;
 const MOMENTS: usize = 6;
@@ -545,7 +534,11 @@ const NORMAL: usize = 12;
 /// A record's size in `f32`s.
 const RECORD: i32 = (std::mem::size_of::<State>() / 4) as i32;
 
-impl Temporal<'_, '_> {
+impl Groups for Temporal<'_, '_> {
+    fn width(&self) -> usize {
+        self.f.width
+    }
+
     /// The group of pixels from `x0` on; whether one's history is [`short`].
     #[inline(always)]
     fn group<V: F32xN>(&mut self, x0: usize) -> bool {
@@ -728,20 +721,13 @@ struct Features<'a, 'f> {
     row: StaticRow<'a>,
 }
 
-impl Kernel<()> for Features<'_, '_> {
-    #[inline(always)]
-    fn run<V: F32xN>(mut self) {
-        let mut x0 = 0;
-        while x0 < self.f.width {
-            self.group::<V>(x0);
-            x0 += V::N;
-        }
+impl Groups for Features<'_, '_> {
+    fn width(&self) -> usize {
+        self.f.width
     }
-}
 
-impl Features<'_, '_> {
     #[inline(always)]
-    fn group<V: F32xN>(&mut self, x0: usize) {
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool {
         let f = self.f;
         let (w, h, y) = (f.width, f.height, self.y);
         let n = V::N.min(w - x0);
@@ -780,6 +766,7 @@ impl Features<'_, '_> {
         for (k, c) in normal.into_iter().enumerate() {
             store_first(V::select(live, c, zero), n, &mut self.row.normal(k)[x0..]);
         }
+        false
     }
 }
 
@@ -793,20 +780,13 @@ struct Output<'a, 'f> {
     out: &'a mut [Vec3],
 }
 
-impl Kernel<()> for Output<'_, '_> {
-    #[inline(always)]
-    fn run<V: F32xN>(mut self) {
-        let mut x0 = 0;
-        while x0 < self.f.width {
-            self.group::<V>(x0);
-            x0 += V::N;
-        }
+impl Groups for Output<'_, '_> {
+    fn width(&self) -> usize {
+        self.f.width
     }
-}
 
-impl Output<'_, '_> {
     #[inline(always)]
-    fn group<V: F32xN>(&mut self, x0: usize) {
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool {
         let f = self.f;
         let i0 = self.y * f.width + x0;
         let n = V::N.min(f.width - x0);
@@ -844,6 +824,7 @@ impl Output<'_, '_> {
         for (j, o) in self.out[x0..x0 + n].iter_mut().enumerate() {
             *o = Vec3::new(r[j], g[j], b[j]);
         }
+        false
     }
 }
 
