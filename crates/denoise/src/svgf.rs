@@ -38,13 +38,13 @@
 //!   rounding).
 //!
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
-//! (holes of 32 pixels), the temporal pass, the variance and the depth gradient worked out as
-//! the planes are laid out: the temporal pass in lanes (`Temporal`, the previous frame's taps
-//! gathered from one record per pixel, `State`), the variance and the depth gradient as
-//! functions of the pixel (`spatial_variance`, `depth_gradient`). The scalar passes here, with
-//! their own buffers (and `integrate`, the temporal pass of one pixel), are the reference they
-//! are tested against and run beyond that (and for images of 2^24 pixels or more, whose
-//! indices an `f32` lane does not hold exactly).
+//! (holes of 32 pixels), the other stages worked out as the planes are laid out: the features
+//! with the depth gradient (`Features`) and the temporal pass (`Temporal`, the previous frame's
+//! taps gathered from one record per pixel, `State`) in lanes, the spatial variance a function
+//! of the pixel (`spatial_variance`) in the rows with a short history, the output in lanes
+//! (`Output`). The scalar passes here, with their own buffers (`integrate`, `depth_gradient`,
+//! `remodulate` of one pixel), are the reference they are tested against and run beyond that
+//! (and for images of 2^24 pixels or more, whose indices an `f32` lane does not hold exactly).
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
