@@ -81,8 +81,8 @@ use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig};
 use crate::simd::{
-    dispatch, exp_neg, gather3, iota, luminance_lanes, store_first, ByGroups, F32xN, Groups, Isa,
-    Kernel, LANES,
+    dispatch, exp_neg, finite, gather3, iota, luminance_lanes, store_first, ByGroups, F32xN,
+    Groups, Isa, Kernel, LANES,
 };
 
 use crate::features::{demodulator, demodulator_lanes, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
@@ -382,7 +382,7 @@ impl FillRows<'_> {
     /// `floor` (`ColourUnits::Variance`), in lanes.
     #[inline(always)]
     fn scale<V: F32xN>(&self, v: V, error: V, la: V, floor: V) -> V {
-        let known = V::and(V::splat(f32::INFINITY).gt(v.abs()), v.ge(V::splat(0.0)));
+        let known = V::and(finite(v), v.ge(V::splat(0.0)));
         let own = (v / (la * la)).sqrt();
         let e = if self.all_errors {
             error
@@ -448,10 +448,9 @@ impl Groups for FillRow<'_, '_> {
             )
         };
         // `valid_pixel`.
-        let infinity = splat(f32::INFINITY);
-        let mut valid = V::and(lanes, infinity.gt(depth.abs()));
+        let mut valid = V::and(lanes, finite(depth));
         for c in vectors.iter().flatten() {
-            valid = V::and(valid, infinity.gt(c.abs()));
+            valid = V::and(valid, finite(*c));
         }
         let [normal, albedo, texture2, direct, indirect] = vectors;
         let mut a = [one; 3];

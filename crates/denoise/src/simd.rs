@@ -149,6 +149,12 @@ unsafe fn run_avx2<R>(f: impl Kernel<R>) -> R {
     f.run::<Avx2>()
 }
 
+/// The lanes that are finite (not infinite, not NaN).
+#[inline(always)]
+pub fn finite<V: F32xN>(x: V) -> V::Mask {
+    V::splat(f32::INFINITY).gt(x.abs())
+}
+
 /// Stores the first `n` lanes of `value` at the start of `out` (all of them in one store when
 /// `n` is [`F32xN::N`]; the others are left alone).
 #[inline(always)]

@@ -60,7 +60,7 @@ use crate::simd::{
     dispatch, gather3, iota, load_first, luminance_lanes, max, store_first, ByGroups, F32xN,
     Groups, LANES,
 };
-use crate::FilterError;
+use crate::{simd, FilterError};
 
 /// One frame's inputs, per pixel in row-major order.
 #[derive(Debug, Clone, Copy)]
@@ -512,10 +512,10 @@ fn integrate(f: &SvgfFrame, previous: &[State], split: bool, i: usize) -> ([Vec3
 
 /// [`integrate`] in lanes, [`F32xN::N`] pixels of row `y` at a time: the integrated light, its
 /// variance and luminance into `row`, the pixels' states into `next` (the row's; their light
-/// left for the first a-trous pass); whether some pixel's history is [`short`]. The same arithmetic in the same order, so the same
-/// numbers; the previous frame's taps are gathers of the lanes that pass the tests, and a tap
-/// no lane takes (a still camera's three others) is skipped. (No closures here: see
-/// `simd::exp_neg`.)
+/// left for the first a-trous pass); whether some pixel's history is [`short`]. The same
+/// arithmetic in the same order, so the same numbers; the previous frame's taps are gathers of
+/// the lanes that pass the tests, and a tap no lane takes (a still camera's three others) is
+/// skipped. (No closures here: see `simd::exp_neg`.)
 struct Temporal<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     previous: &'a [State],
@@ -526,11 +526,11 @@ struct Temporal<'a, 'f> {
 }
 
 /// The record's fields, in `f32`s from its start.
-const LIGHT: usize = 0;
-const MOMENTS: usize = 6;
-const LENGTH: usize = 10;
-const DEPTH: usize = 11;
-const NORMAL: usize = 12;
+const LIGHT: usize = std::mem::offset_of!(State, light) / 4;
+const MOMENTS: usize = std::mem::offset_of!(State, m) / 4;
+const LENGTH: usize = std::mem::offset_of!(State, length) / 4;
+const DEPTH: usize = std::mem::offset_of!(State, depth) / 4;
+const NORMAL: usize = std::mem::offset_of!(State, normal) / 4;
 /// A record's size in `f32`s.
 const RECORD: i32 = (std::mem::size_of::<State>() / 4) as i32;
 
@@ -570,7 +570,6 @@ impl Groups for Temporal<'_, '_> {
                 V::gather(motion.add(1), index, 2, valid),
             )
         };
-        let infinity = splat(f32::INFINITY);
         // Not passed through (`passes_through`).
         let live = V::and(valid, live_lanes(f, i0, n, depth));
 
@@ -586,7 +585,7 @@ impl Groups for Temporal<'_, '_> {
         }
         let mut finite = valid;
         for c in cur.iter().flatten() {
-            finite = V::and(finite, infinity.gt(c.abs()));
+            finite = V::and(finite, simd::finite(*c));
         }
         let lum = [luminance_lanes(cur[0]), luminance_lanes(cur[1])];
         let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
@@ -631,7 +630,7 @@ impl Groups for Temporal<'_, '_> {
                 )
             };
             let keep = V::and(
-                V::and(V::and(inside, length.gt(zero)), infinity.gt(pdepth.abs())),
+                V::and(V::and(inside, length.gt(zero)), simd::finite(pdepth)),
                 V::and(
                     (splat(DEPTH_TOLERANCE) * depth).ge((pdepth - depth).abs()),
                     dot.ge(splat(NORMAL_COSINE)),
@@ -756,7 +755,7 @@ impl Groups for Features<'_, '_> {
         };
         let (dx, dy) = ((r - l) * splat(0.5), (u - d) * splat(0.5));
         let gz = max(dx.abs(), dy.abs());
-        let gz = V::select(splat(f32::INFINITY).gt(gz.abs()), gz, zero);
+        let gz = V::select(simd::finite(gz), gz, zero);
         let live = live_lanes(f, y * w + x0, n, depth);
         // SAFETY: the lanes where `valid` index this row's pixels.
         let normal = unsafe { gather3(f.normal, at + x, valid) };
@@ -838,10 +837,7 @@ fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask
     }
     // SAFETY: `emitter` has `LANES` lanes.
     let emitter = unsafe { V::load(emitter.as_ptr()) };
-    V::and(
-        V::splat(f32::INFINITY).gt(depth.abs()),
-        V::splat(0.5).gt(emitter),
-    )
+    V::and(simd::finite(depth), V::splat(0.5).gt(emitter))
 }
 
 /// Pixel `i`'s history is under 4 frames: its variance comes from its neighbourhood.
