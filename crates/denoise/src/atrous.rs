@@ -1,8 +1,8 @@
 //! SVGF's a-trous passes ([`crate::svgf`]) over structure-of-arrays planes, 16 centre pixels at a
 //! time in the lanes of [`crate::simd`] (one AVX-512 register, or 8 at a time in an AVX2 one,
-//! with FMA, as the processor has them), one or two signals: the same weights and taps as the scalar pass in
-//! `svgf.rs`, which stays as the reference (a test holds them together, for every kind of lanes)
-//! and for passes too wide for the planes' padding.
+//! with FMA, as the processor has them), one or two signals: the same weights and taps as the
+//! scalar pass in `svgf.rs`, which stays as the reference (a test holds them together, for every
+//! kind of lanes) and for passes too wide for the planes' padding.
 //!
 //! The planes carry a border of `pad` pixels (twice the widest hole) whose normal is zero, so a
 //! tap that falls outside the image weighs exactly 0, as the scalar pass's bounds test gives;
@@ -13,12 +13,20 @@
 //! took a third longer than those of 1). Each 16-pixel group writes its result, the pixels that
 //! pass through kept, and the luminances the next pass tests, in lanes; the luminance test's
 //! sigma (the blurred variance) is worked out in the group from the variance planes.
+//!
+//! The passes are bound by their taps' dependency chains rather than by loads or arithmetic
+//! (`llvm-mca` on the tap loop), so the loop is kept short: the taps' offsets, kernel weights
+//! and distances are worked out once per pass ([`Tap`]); a weight's exponent is floored with
+//! one `max` (the test of `MIN_WEIGHT` drops what the floor admits); and the group's
+//! reciprocals (of the weights' sum, of the depth test's scales) are the processor's estimate
+//! refined by a Newton step ([`F32xN::recip`]) instead of divisions, which one unit runs one
+//! at a time. So the lanes agree with the scalar pass to rounding, not bit for bit.
 
 use glam::Vec3;
 use pathlight_core::color::LUMINANCE;
 use rayon::prelude::*;
 
-use crate::simd::{dispatch, exp_neg, store_first, F32xN, Isa, Kernel, LANES};
+use crate::simd::{dispatch, exp_neg_in_range, store_first, F32xN, Isa, Kernel, LANES};
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
@@ -390,7 +398,29 @@ impl Planes {
             2 * step,
             g.pad
         );
+        let r = if kernel == 3 { 1 } else { 2 };
+        let h = spline(kernel);
+        let row = |g: &Grid, kx: i64, ky: i64| {
+            (g.at(kx * step as i64, ky * step as i64, 0) as isize) - g.at(0, 0, 0) as isize
+        };
+        let taps = (-r..=r)
+            .flat_map(|ky| (-r..=r).map(move |kx| (kx, ky)))
+            .filter(|&k| k != (0, 0))
+            .map(|(kx, ky)| Tap {
+                fixed: row(&self.fixed, kx, ky),
+                moving: row(&g, kx, ky),
+                kernel: h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize],
+                distance: match kx * kx + ky * ky {
+                    1 => 0,
+                    2 => 1,
+                    4 => 2,
+                    5 => 3,
+                    _ => 4,
+                },
+            })
+            .collect();
         let pass = Pass {
+            taps,
             fixed: self.fixed,
             moving: g,
             statics: &self.statics,
@@ -420,6 +450,19 @@ struct Pass<'a> {
     signals: usize,
     /// The widest lanes to use.
     isa: Isa,
+    /// The kernel's taps but the centre, row by row (the order the scalar pass sums in).
+    taps: Vec<Tap>,
+}
+
+/// A tap of a pass, worked out once per pass: where it lies from the centre in each layout,
+/// its kernel weight and its distance's depth term.
+#[derive(Clone, Copy)]
+struct Tap {
+    fixed: isize,
+    moving: isize,
+    kernel: f32,
+    /// Index of the distance (|k|^2 = 1, 2, 4, 5, 8) in `minus_rz`.
+    distance: usize,
 }
 
 /// The weighted sums of [`LANES`] centre pixels for `S` signals.
@@ -479,16 +522,29 @@ impl Pass<'_> {
     /// Plane `p` of the statics at the 16 pixels from (x, y) on.
     #[inline(always)]
     fn st<V: F32xN>(&self, p: usize, x: i64, y: i64) -> V {
+        self.st_at(p, self.fixed.at(x, y, 0))
+    }
+
+    /// Plane `p` of the statics at the 16 pixels from index `at` (of plane 0) on: a pixel's
+    /// [`Grid::at`], or a centre's plus a [`Tap`]'s offset.
+    #[inline(always)]
+    fn st_at<V: F32xN>(&self, p: usize, at: usize) -> V {
         // SAFETY: the taps lie within the padding (asserted by `Planes::pass`), the centre
         // group within the image.
-        unsafe { Self::lanes(self.statics, self.fixed.at(x, y, p)) }
+        unsafe { Self::lanes(self.statics, at + p * self.fixed.pitch) }
     }
 
     /// Plane `p` of the current light, variance and luminance at the 16 pixels from (x, y) on.
     #[inline(always)]
     fn dy<V: F32xN>(&self, p: usize, x: i64, y: i64) -> V {
-        // SAFETY: as in `st`.
-        unsafe { Self::lanes(self.current, self.moving.at(x, y, p)) }
+        self.dy_at(p, self.moving.at(x, y, 0))
+    }
+
+    /// [`Self::st_at`] for the current light, variance and luminance.
+    #[inline(always)]
+    fn dy_at<V: F32xN>(&self, p: usize, at: usize) -> V {
+        // SAFETY: as in `st_at`.
+        unsafe { Self::lanes(self.current, at + p * self.moving.pitch) }
     }
 
     /// The [`LANES`] pixels from (x0, y) on filtered by a kernel of radius `R` (1: 3x3, 2: 5x5)
@@ -509,12 +565,14 @@ impl Pass<'_> {
         for sig in 0..S {
             let mut c = [V::splat(0.0); 3];
             let mut out = [V::splat(0.0); 5];
+            // The sum of weights is at least the centre's (9/64 or 1/4).
+            let inv_w = s.w[sig].recip();
             for k in 0..3 {
                 let p = L + 3 * sig + k;
-                c[k] = V::select(through, self.dy(p, x0, y), s.light[sig][k] / s.w[sig]);
+                c[k] = V::select(through, self.dy(p, x0, y), s.light[sig][k] * inv_w);
                 out[k] = c[k];
             }
-            let var = s.var[sig] / (s.w[sig] * s.w[sig]);
+            let var = s.var[sig] * inv_w * inv_w;
             out[3] = V::select(through, self.dy(v + sig, x0, y), flush_variance_lanes(var));
             out[4] = c[0] * r + c[1] * gr + c[2] * b;
             let l = L + 3 * sig;
@@ -575,44 +633,40 @@ impl Pass<'_> {
             .take(if R == 1 { 2 } else { 5 })
         {
             let distance = [1.0f32, 2.0, 4.0, 5.0, 8.0][d].sqrt() * step as f32;
-            *rz = splat(-1.0) / (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc);
+            // Finite and positive wherever the centre does not pass through (the others'
+            // lanes are replaced by the centre's own values).
+            *rz = (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc).recip() * splat(-1.0);
         }
         let (floor, zero, min) = (splat(-30.0), splat(0.0), splat(MIN_WEIGHT));
-        for ky in -R..=R {
-            for kx in -R..=R {
-                if kx == 0 && ky == 0 {
-                    continue;
+        let (cf, cm) = (self.fixed.at(x0, y, 0), self.moving.at(x0, y, 0));
+        for tap in &self.taps {
+            let minus_rz = minus_rz[tap.distance];
+            let (qf, qm) = (
+                cf.wrapping_add_signed(tap.fixed),
+                cm.wrapping_add_signed(tap.moving),
+            );
+            let kernel = splat(tap.kernel);
+            let wz = (self.st_at::<V>(Z, qf) - zc).abs() * minus_rz;
+            let cos = self.st_at::<V>(NX, qf) * nc[0];
+            let cos = self.st_at::<V>(NX + 1, qf).mul_add(nc[1], cos);
+            let cos = self.st_at::<V>(NX + 2, qf).mul_add(nc[2], cos);
+            let wn = normal_weight_lanes(cos);
+            let kw = kernel * wn;
+            for sig in 0..S {
+                let lq: V = self.dy_at(lum + sig, qm);
+                let e = (lq - lc[sig]).abs().mul_add(minus_inv[sig], wz);
+                // Every lane's product is worked out, so none may be subnormal: e at least
+                // -30, kw (with the normal weight's cut) at least 1.6e-15. Below -30 (or NaN)
+                // the weight is at most e^-30 = 9.4e-14 (kw is at most 1), under
+                // `MIN_WEIGHT`: 0, as the scalar pass's `e > -30` test gives.
+                let t = kw * exp_neg_in_range(e.at_least(floor));
+                let wq = V::select(t.ge(min), t, zero);
+                s.w[sig] = s.w[sig] + wq;
+                for k in 0..3 {
+                    let l: V = self.dy_at(L + 3 * sig + k, qm);
+                    s.light[sig][k] = l.mul_add(wq, s.light[sig][k]);
                 }
-                let minus_rz = minus_rz[match kx * kx + ky * ky {
-                    1 => 0,
-                    2 => 1,
-                    4 => 2,
-                    5 => 3,
-                    _ => 4,
-                }];
-                let (qx, qy) = (x0 + kx * step, y + ky * step);
-                let kernel = splat(h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize]);
-                let wz = (self.st::<V>(Z, qx, qy) - zc).abs() * minus_rz;
-                let cos = self.st::<V>(NX, qx, qy) * nc[0];
-                let cos = self.st::<V>(NX + 1, qx, qy).mul_add(nc[1], cos);
-                let cos = self.st::<V>(NX + 2, qx, qy).mul_add(nc[2], cos);
-                let wn = normal_weight_lanes(cos);
-                let kw = kernel * wn;
-                for sig in 0..S {
-                    let lq: V = self.dy(lum + sig, qx, qy);
-                    let e = (lq - lc[sig]).abs().mul_add(minus_inv[sig], wz);
-                    // Every lane's product is worked out, so none may be subnormal: e at
-                    // least -30, kw (with the normal weight's cut) at least 1.6e-15.
-                    let inside = e.gt(floor);
-                    let t = kw * exp_neg(V::select(inside, e, floor));
-                    let wq = V::select(V::and(inside, t.ge(min)), t, zero);
-                    s.w[sig] = s.w[sig] + wq;
-                    for k in 0..3 {
-                        let l: V = self.dy(L + 3 * sig + k, qx, qy);
-                        s.light[sig][k] = l.mul_add(wq, s.light[sig][k]);
-                    }
-                    s.var[sig] = (self.dy::<V>(v + sig, qx, qy) * wq).mul_add(wq, s.var[sig]);
-                }
+                s.var[sig] = (self.dy_at::<V>(v + sig, qm) * wq).mul_add(wq, s.var[sig]);
             }
         }
         s
@@ -625,6 +679,11 @@ impl Pass<'_> {
 /// is slow on many processors (a pass took up to 6x its time on an Intel Xeon of these
 /// machines).
 pub const MIN_WEIGHT: f32 = 1e-10;
+
+// A tap whose exponent is at most -30 weighs at most e^-30 = 9.36e-14 (the kernel's and the
+// normal's weights are at most 1): under `MIN_WEIGHT`, so the passes need not test the exponent
+// apart.
+const _: () = assert!(MIN_WEIGHT > 9.36e-14);
 
 /// A luminance variance below which it is 0 (its root, 1e-8, is nothing beside the luminance
 /// test's 1e-4): with [`MIN_WEIGHT`], no product of the passes is subnormal.

@@ -45,6 +45,12 @@ pub trait F32xN:
     fn mul_add(self, b: Self, c: Self) -> Self;
     fn abs(self) -> Self;
     fn sqrt(self) -> Self;
+    /// `self`, or `floor` in the lanes where `self` is below it or NaN (one instruction).
+    fn at_least(self, floor: Self) -> Self;
+    /// `1 / self` for finite, non-zero, normal lanes, to within about 2^-22 of it: the
+    /// processor's estimate refined by one Newton step (exact in plain arrays). A division
+    /// takes one unit 16 cycles per AVX-512 register, this a few pipelined instructions.
+    fn recip(self) -> Self;
     fn floor(self) -> Self;
     /// The lanes' bits shifted left by 23 (an integer operation on the float's bits: a whole
     /// number in the low mantissa bits moves into the exponent).
@@ -223,8 +229,13 @@ pub fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
 /// `e^x` for `x <= 0` in lanes: [`crate::exp::exp_neg`]'s method and polynomial.
 #[inline(always)]
 pub fn exp_neg<V: F32xN>(x: V) -> V {
-    use crate::exp::{EXP2_POLY, LOWEST};
-    let x = V::select(x.ge(V::splat(LOWEST)), x, V::splat(LOWEST));
+    exp_neg_in_range(x.at_least(V::splat(crate::exp::LOWEST)))
+}
+
+/// [`exp_neg`] of lanes the caller has kept within `LOWEST..=0` (not NaN).
+#[inline(always)]
+pub fn exp_neg_in_range<V: F32xN>(x: V) -> V {
+    use crate::exp::EXP2_POLY;
     let t = x * V::splat(std::f32::consts::LOG2_E);
     let i = t.floor();
     let f = t - i;
@@ -301,6 +312,14 @@ impl F32xN for Portable {
     #[inline(always)]
     fn sqrt(self) -> Self {
         self.map(f32::sqrt)
+    }
+    #[inline(always)]
+    fn at_least(self, floor: Self) -> Self {
+        self.zip(floor, |x, f| if x >= f { x } else { f })
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        self.map(|x| 1.0 / x)
     }
     #[inline(always)]
     fn floor(self) -> Self {
@@ -416,6 +435,18 @@ impl F32xN for Avx512 {
     #[inline(always)]
     fn sqrt(self) -> Self {
         Self(avx512!(_mm512_sqrt_ps(self.0)))
+    }
+    #[inline(always)]
+    fn at_least(self, floor: Self) -> Self {
+        // `maxps` gives its second operand where either is NaN.
+        Self(avx512!(_mm512_max_ps(self.0, floor.0)))
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        // The estimate to 2^-14, then r + r (1 - x r).
+        let r = avx512!(_mm512_rcp14_ps(self.0));
+        let e = avx512!(_mm512_fnmadd_ps(self.0, r, _mm512_set1_ps(1.0)));
+        Self(avx512!(_mm512_fmadd_ps(r, e, r)))
     }
     #[inline(always)]
     fn floor(self) -> Self {
@@ -540,6 +571,18 @@ impl F32xN for Avx2 {
         Self(avx2!(_mm256_sqrt_ps(self.0)))
     }
     #[inline(always)]
+    fn at_least(self, floor: Self) -> Self {
+        // `maxps` gives its second operand where either is NaN.
+        Self(avx2!(_mm256_max_ps(self.0, floor.0)))
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        // The estimate to 1.5 2^-12, then r + r (1 - x r).
+        let r = avx2!(_mm256_rcp_ps(self.0));
+        let e = avx2!(_mm256_fnmadd_ps(self.0, r, _mm256_set1_ps(1.0)));
+        Self(avx2!(_mm256_fmadd_ps(r, e, r)))
+    }
+    #[inline(always)]
     fn floor(self) -> Self {
         Self(avx2!(_mm256_floor_ps(self.0)))
     }
@@ -621,6 +664,26 @@ mod tests {
                 same(va.mul_add(vb, va), &|x, y| x * y + x);
                 same(va.abs().sqrt(), &|x, _| x.abs().sqrt());
                 same(va.floor(), &|x, _| x.floor());
+                same(va.at_least(vb), &|x, y| if x >= y { x } else { y });
+                // The reciprocal to about 2^-22 (its estimate's error squared), on values
+                // from 1e-30 to 1e30, negative ones too.
+                for scale in [1e-30, 1e-3, 1.0, 7.0e4, 1e30] {
+                    let r = (va * V::splat(scale)).recip().to_array();
+                    for (j, r) in r.iter().enumerate().take(V::N) {
+                        let want = 1.0 / (a[j] as f64 * scale as f64);
+                        let error = ((*r as f64 - want) / want).abs();
+                        assert!(error < 2.5e-7, "1 / {} = {want}: {r}", a[j] * scale);
+                    }
+                }
+                // A NaN lane takes the floor.
+                let nan = V::select(va.gt(V::splat(0.0)), V::splat(f32::NAN), va);
+                same(nan.at_least(vb), &|x, y| {
+                    if x > 0.0 || x < y {
+                        y
+                    } else {
+                        x
+                    }
+                });
                 same(V::splat(3.0).shl_23(), &|_, _| {
                     f32::from_bits(3f32.to_bits() << 23)
                 });
