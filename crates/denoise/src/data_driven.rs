@@ -86,6 +86,7 @@ use crate::simd::{
 };
 
 use crate::features::{demodulator, demodulator_lanes, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
+use crate::neighbourhood::{Neighbourhoods, Statistic};
 use crate::FilterError;
 
 /// Centre pixels filtered together ([`crate::simd`]).
@@ -111,10 +112,10 @@ const PLANES: usize = 19;
 #[derive(Default)]
 pub struct DataDriven {
     planes: Vec<f32>,
-    /// Variance units, per pixel and signal (direct, indirect): a scratch value (the
-    /// demodulated luminance for the single-sample errors, then the squared error for
+    /// Variance units, per pixel and signal (direct, indirect): the neighbourhoods' values
+    /// (the demodulated luminance for the single-sample errors, then the squared error for
     /// `error_blur`), and the standard error of the mean.
-    per_signal: Vec<[f32; 2]>,
+    neighbourhoods: Neighbourhoods,
     errors: Vec<[f32; 2]>,
     /// The planes' layout and the image's height (the padding is zero for these).
     layout: Option<(Layout, usize)>,
@@ -269,8 +270,8 @@ impl DataDriven {
     fn neighbourhood_errors(
         &mut self,
         f: &Features,
-        albedo: &(dyn Fn(usize) -> Vec3 + Sync),
-        valid: &(dyn Fn(usize) -> bool + Sync),
+        albedo: &(impl Fn(usize) -> Vec3 + Sync),
+        valid: &(impl Fn(usize) -> bool + Sync),
     ) {
         let unknown = f
             .light_variance
@@ -279,35 +280,18 @@ impl DataDriven {
         if !unknown {
             return;
         }
-        let n = f.len();
-        self.per_signal.resize(n, [0.0; 2]);
-        self.per_signal
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(i, l)| {
-                let a = luminance(albedo(i));
-                *l = if valid(i) {
-                    [luminance(f.direct[i]) / a, luminance(f.indirect[i]) / a]
-                } else {
-                    [f32::NAN; 2]
-                };
-            });
-        let lum = &self.per_signal;
-        let (w, h) = (f.width, f.height);
-        self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
-            for (k, e) in e.iter_mut().enumerate() {
-                if known(f.light_variance[i][k]) {
-                    continue;
-                }
-                let [count, sum, sq] = neighbourhood(lum, (w, h), i, k);
-                let variance = if count > 1.0 {
-                    ((sq - sum * sum / count) / (count - 1.0)).max(0.0)
-                } else {
-                    0.0
-                };
-                *e = variance.sqrt();
+        self.neighbourhoods.fill(f.width, f.height, |i| {
+            let a = luminance(albedo(i));
+            if valid(i) {
+                [luminance(f.direct[i]) / a, luminance(f.indirect[i]) / a]
+            } else {
+                [f32::NAN; 2]
             }
         });
+        self.neighbourhoods
+            .compute(Statistic::Deviation, self.isa, &mut self.errors, |i, k| {
+                known(f.light_variance[i][k])
+            });
     }
 }
 
@@ -318,39 +302,28 @@ impl DataDriven {
     fn blur_errors(
         &mut self,
         f: &Features,
-        albedo: &(dyn Fn(usize) -> Vec3 + Sync),
-        valid: &(dyn Fn(usize) -> bool + Sync),
+        albedo: &(impl Fn(usize) -> Vec3 + Sync),
+        valid: &(impl Fn(usize) -> bool + Sync),
     ) {
         // The squared standard errors, NaN where the pixel is not valid.
-        self.per_signal.resize(f.len(), [0.0; 2]);
         let errors = &self.errors;
-        self.per_signal
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(i, square)| {
-                let la = luminance(albedo(i));
-                *square = std::array::from_fn(|k| {
-                    let v = f.light_variance[i][k];
-                    if !valid(i) {
-                        f32::NAN
-                    } else if known(v) {
-                        v / (la * la)
-                    } else {
-                        errors[i][k] * errors[i][k]
-                    }
-                });
-            });
-        let (squares, (w, h)) = (&self.per_signal, (f.width, f.height));
-        self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
-            for (k, e) in e.iter_mut().enumerate() {
-                let [count, sum, _] = neighbourhood(squares, (w, h), i, k);
-                *e = if count > 0.0 {
-                    (sum / count).sqrt()
+        self.neighbourhoods.fill(f.width, f.height, |i| {
+            let la = luminance(albedo(i));
+            std::array::from_fn(|k| {
+                let v = f.light_variance[i][k];
+                if !valid(i) {
+                    f32::NAN
+                } else if known(v) {
+                    v / (la * la)
                 } else {
-                    0.0
-                };
-            }
+                    errors[i][k] * errors[i][k]
+                }
+            })
         });
+        self.neighbourhoods
+            .compute(Statistic::RootMean, self.isa, &mut self.errors, |_, _| {
+                false
+            });
     }
 }
 
@@ -534,23 +507,6 @@ fn valid_pixel(depth: f32, vectors: [Vec3; 5]) -> bool {
     vectors
         .iter()
         .fold(depth.is_finite(), |ok, v| ok & v.is_finite())
-}
-
-/// The count, sum and sum of squares of the finite values of signal `k` over pixel `i`'s 3x3
-/// neighbourhood (cut at the borders) in a `size` image.
-fn neighbourhood(values: &[[f32; 2]], size: (usize, usize), i: usize, k: usize) -> [f32; 3] {
-    let (w, h) = size;
-    let (x, y) = (i % w, i / w);
-    let mut acc = [0.0f32; 3];
-    for yy in y.saturating_sub(1)..(y + 2).min(h) {
-        for xx in x.saturating_sub(1)..(x + 2).min(w) {
-            let v = values[yy * w + xx][k];
-            if v.is_finite() {
-                acc = [acc[0] + 1.0, acc[1] + v, acc[2] + v * v];
-            }
-        }
-    }
-    acc
 }
 
 /// A variance the caller gives (finite and not negative; NaN: not known).

@@ -15,6 +15,7 @@ pub mod config;
 pub mod data_driven;
 mod exp;
 pub mod features;
+mod neighbourhood;
 pub mod rpf;
 mod simd;
 pub mod svgf;
