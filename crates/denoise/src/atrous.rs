@@ -410,13 +410,10 @@ impl Planes {
                 fixed: row(&self.fixed, kx, ky),
                 moving: row(&g, kx, ky),
                 kernel: h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize],
-                distance: match kx * kx + ky * ky {
-                    1 => 0,
-                    2 => 1,
-                    4 => 2,
-                    5 => 3,
-                    _ => 4,
-                },
+                distance: SQUARED_DISTANCES
+                    .iter()
+                    .position(|&d| d == kx * kx + ky * ky)
+                    .expect("a 3x3 or 5x5 tap"),
             })
             .collect();
         let pass = Pass {
@@ -461,9 +458,13 @@ struct Tap {
     fixed: isize,
     moving: isize,
     kernel: f32,
-    /// Index of the distance (|k|^2 = 1, 2, 4, 5, 8) in `minus_rz`.
+    /// Index of the tap's distance in [`SQUARED_DISTANCES`] (and the depth terms).
     distance: usize,
 }
+
+/// The squared distances of a 3x3 kernel's taps from its centre (the first two) and a 5x5
+/// one's, in holes: the depth test's term is worked out once per distance and group.
+const SQUARED_DISTANCES: [i64; 5] = [1, 2, 4, 5, 8];
 
 /// The weighted sums of [`LANES`] centre pixels for `S` signals.
 struct Sums<V, const S: usize> {
@@ -632,7 +633,7 @@ impl Pass<'_> {
             .enumerate()
             .take(if R == 1 { 2 } else { 5 })
         {
-            let distance = [1.0f32, 2.0, 4.0, 5.0, 8.0][d].sqrt() * step as f32;
+            let distance = (SQUARED_DISTANCES[d] as f32).sqrt() * step as f32;
             // Finite and positive wherever the centre does not pass through (the others'
             // lanes are replaced by the centre's own values).
             *rz = (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc).recip() * splat(-1.0);
