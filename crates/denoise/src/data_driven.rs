@@ -362,8 +362,8 @@ impl FillRows<'_> {
         } else {
             V::select(known, own, error)
         };
-        // `f32::max`: the floor where e is NaN.
-        let e = V::select(e.ge(floor), e, floor);
+        // The floor where e is NaN, as `f32::max` gives.
+        let e = e.at_least(floor);
         if self.sum {
             e * e
         } else {

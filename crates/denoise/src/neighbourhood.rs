@@ -23,7 +23,6 @@ pub enum Statistic {
 pub struct Neighbourhoods {
     planes: Vec<f32>,
     width: usize,
-    height: usize,
 }
 
 impl Neighbourhoods {
@@ -41,7 +40,7 @@ impl Neighbourhoods {
 
     /// Lays out a `width x height` image's values: `value(i)` of pixel `i` (NaN: not counted).
     pub fn fill(&mut self, width: usize, height: usize, value: impl Fn(usize) -> [f32; 2] + Sync) {
-        (self.width, self.height) = (width, height);
+        self.width = width;
         let row = 2 * self.pitch();
         // Every float is written: the border NaN, the image's pixels their values.
         self.planes.resize(row * (height + 2), f32::NAN);
