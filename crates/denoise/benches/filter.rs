@@ -81,6 +81,9 @@ impl Synthetic {
 fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
     let s = Synthetic::new(w, h);
     let n = w * h;
+    // Half the pixels metallic and glossy.
+    let roughness = vec![0.3; n];
+    let metallic: Vec<f32> = (0..n).map(|i| (i / w % 2) as f32).collect();
     let features = Features {
         width: w,
         height: h,
@@ -92,6 +95,8 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
         texture2: &s.albedo,
         variance: &s.variance,
         light_variance: &s.light_variance,
+        roughness: &roughness,
+        metallic: &metallic,
     };
     let mut filter = DataDriven::new();
     let mut out = vec![Vec3::ZERO; n];

@@ -7,7 +7,8 @@
 //! first bounce), each the mean over the pixel's samples; `variance` holds, per pixel, the
 //! sample variance (n-1) of depth, normal, texture, first-bounce direction and texture2, each
 //! summed over its components; `light_variance` the variance of the mean of the light's
-//! luminance.
+//! luminance; `roughness` and `metallic` the material's at the first hit (means over the
+//! pixel's samples), which say how fast a glossy reflection turns with the normal.
 
 use glam::Vec3;
 
@@ -36,6 +37,10 @@ pub struct Features<'a> {
     /// (not demodulated); NaN where the caller does not know it (one sample). Read by the
     /// variance colour units only.
     pub light_variance: &'a [[f32; 2]],
+    /// The first hit's roughness (perceptual: GGX alpha is its square) and metallic factor,
+    /// means over the pixel's samples (1 and 0 where unknown: the thesis's normal test).
+    pub roughness: &'a [f32],
+    pub metallic: &'a [f32],
 }
 
 impl Features<'_> {
@@ -60,6 +65,8 @@ impl Features<'_> {
             ("texture2", self.texture2.len()),
             ("variance", self.variance.len()),
             ("light_variance", self.light_variance.len()),
+            ("roughness", self.roughness.len()),
+            ("metallic", self.metallic.len()),
         ] {
             if len != n {
                 return Err(FilterError::Size {

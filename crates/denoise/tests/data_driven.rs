@@ -23,6 +23,8 @@ struct Frame {
     texture2: Vec<Vec3>,
     variance: Vec<[f32; 5]>,
     light_variance: Vec<[f32; 2]>,
+    roughness: Vec<f32>,
+    metallic: Vec<f32>,
 }
 
 impl Frame {
@@ -40,6 +42,8 @@ impl Frame {
             texture2: vec![Vec3::splat(0.5); n],
             variance: vec![[0.0; 5]; n],
             light_variance: vec![[f32::NAN; 2]; n],
+            roughness: vec![1.0; n],
+            metallic: vec![0.0; n],
         }
     }
 
@@ -55,6 +59,8 @@ impl Frame {
             texture2: &self.texture2,
             variance: &self.variance,
             light_variance: &self.light_variance,
+            roughness: &self.roughness,
+            metallic: &self.metallic,
         }
     }
 
@@ -162,6 +168,13 @@ fn busy(width: usize, height: usize, seed: u64) -> Frame {
                 rng.uniform() as f32 * 0.3,
             ];
             f.light_variance[i] = [rng.uniform() as f32 * 0.01, rng.uniform() as f32 * 0.002];
+            // Metal of every kind, glossy to rough, and plain dielectrics.
+            f.roughness[i] = rng.uniform() as f32;
+            f.metallic[i] = if y % 3 == 0 {
+                0.0
+            } else {
+                rng.uniform() as f32
+            };
             if x < 3 && y < 2 {
                 f.depth[i] = f32::INFINITY;
             }
@@ -208,7 +221,16 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                 v[0] as f64 * depth_scale * depth_scale,
                 s[0],
             );
-            let c_normal = low(k(c.sigma_normal), v[1] as f64, s[1]);
+            // A metallic pixel's normal sigma: toward the lobe's alpha times the factor.
+            let m = (f.metallic[p] as f64).clamp(0.0, 1.0);
+            let alpha = (f.roughness[p] as f64).powi(2).max(0.01);
+            let sigma_normal = if c.sigma_normal_lobe > 0.0 {
+                let lobe = (c.sigma_normal_lobe as f64 * alpha).min(c.sigma_normal as f64);
+                c.sigma_normal as f64 + m * (lobe - c.sigma_normal as f64)
+            } else {
+                c.sigma_normal as f64
+            };
+            let c_normal = low(0.5 / (sigma_normal * sigma_normal), v[1] as f64, s[1]);
             let c_texture = low(k(c.sigma_texture), v[2] as f64, s[2]);
             let c_texture2 = if c.texture2_test {
                 low(k(c.sigma_texture2), v[4] as f64, s[4])
@@ -333,6 +355,12 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
             colour_units,
             error_pair,
             texture2_test,
+            // The glossy normal test off, the default, wider.
+            sigma_normal_lobe: match kernel {
+                9 => 0.0,
+                5 => 2.5,
+                _ => 1.0,
+            },
             ..data_driven()
         };
         let (got, want) = (f.filter_with(&c, lanes), reference(&f, &c));
@@ -343,7 +371,8 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
         assert!(
             worst < 1e-4,
             "kernel {kernel} holes {holes} demodulate {demodulate} {error_pair:?} texture2 \
-             {texture2_test} lanes {lanes}: {worst}"
+             {texture2_test} lanes {lanes} lobe {}: {worst}",
+            c.sigma_normal_lobe
         );
         // The filter does something here (but for the 1x1 window).
         let moved = got
@@ -397,6 +426,47 @@ fn a_feature_edge_is_not_blurred_across() {
     flat.normal.fill(Vec3::Z);
     let blurred = flat.filter(&data_driven());
     assert!(blurred[10 * 40 + 19].x > 0.25, "{}", blurred[10 * 40 + 19]);
+}
+
+#[test]
+fn a_glossy_metal_keeps_its_reflections_apart() {
+    // Two halves of one metal wall whose normals differ by 0.2 radians, each reflecting
+    // another flat light (0.2, 0.9). The thesis's normal test (sigma 0.25) lets the other
+    // half in; at a glossy metallic pixel the test is as tight as the lobe (alpha = 0.04 at
+    // roughness 0.2: a weight of exp(-12.5) across the edge), so each half keeps its own light.
+    let tilted = Vec3::new(0.2f32.sin(), 0.0, 0.2f32.cos());
+    let mut f = Frame::flat(40, 20, Vec3::splat(0.2), Vec3::ZERO);
+    for y in 0..20 {
+        for x in 20..40 {
+            f.normal[y * 40 + x] = tilted;
+            f.direct[y * 40 + x] = Vec3::splat(0.9);
+        }
+    }
+    f.roughness.fill(0.2);
+    f.metallic.fill(1.0);
+    let edge = |out: &[Vec3]| [out[10 * 40 + 19].x, out[10 * 40 + 20].x];
+    let [left, right] = edge(&f.filter(&data_driven()));
+    assert!(
+        (left - 0.2).abs() < 1e-4 && (right - 0.9).abs() < 1e-4,
+        "{left} {right}"
+    );
+    // The thesis's test, a dielectric, a rough metal: the edge is blurred.
+    let thesis = FilterConfig {
+        sigma_normal_lobe: 0.0,
+        ..data_driven()
+    };
+    let mut dielectric = f.clone();
+    dielectric.metallic.fill(0.0);
+    let mut rough = f.clone();
+    rough.roughness.fill(1.0);
+    for (name, out) in [
+        ("thesis", f.filter(&thesis)),
+        ("dielectric", dielectric.filter(&data_driven())),
+        ("rough", rough.filter(&data_driven())),
+    ] {
+        let [left, right] = edge(&out);
+        assert!(left > 0.25 && right < 0.85, "{name}: {left} {right}");
+    }
 }
 
 #[test]
@@ -476,6 +546,9 @@ fn a_nan_or_infinite_sample_stays_in_its_pixel() {
         f.direct[10 * 30 + 15].y = bad;
         f.normal[5 * 30 + 5].x = bad;
         f.variance[3 * 30 + 20][1] = bad;
+        f.roughness[7 * 30 + 3] = bad;
+        f.metallic[7 * 30 + 3] = 1.0;
+        f.metallic[8 * 30 + 9] = bad;
         let out = f.filter(&data_driven());
         for (i, o) in out.iter().enumerate() {
             if i == 10 * 30 + 15 {

@@ -413,6 +413,10 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         sigma(ui, &mut f.sigma_indirect, "sigma indirect light");
         sigma(ui, &mut f.sigma_depth, "sigma depth");
         sigma(ui, &mut f.sigma_normal, "sigma normal");
+        ui.add(
+            egui::Slider::new(&mut f.sigma_normal_lobe, 0.0..=4.0)
+                .text("normal sigma of metal, x GGX alpha (0: the thesis's)"),
+        );
         sigma(ui, &mut f.sigma_texture, "sigma texture");
         ui.checkbox(&mut f.texture2_test, "texture2 test (thesis)");
         ui.add_enabled_ui(f.texture2_test, |ui| {

@@ -36,7 +36,7 @@ use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method,
 use rayon::prelude::*;
 
 use super::accumulation::PixelStats;
-use super::gbuffer::GBuffer;
+use super::gbuffer::{GBuffer, GPixel};
 use super::lighting::LightSample;
 
 /// Running means and sums of squared deviations (summed over components) of one pixel's
@@ -57,16 +57,22 @@ struct FeatureStats {
     texture2_m2: f32,
     direction: Vec3,
     direction_m2: f32,
+    /// Means of the material's roughness and metallic factor.
+    roughness: f32,
+    metallic: f32,
 }
 
 impl FeatureStats {
     /// Adds one sample's features (Welford).
-    fn add(&mut self, depth: f32, normal: Vec3, albedo: Vec3, texture2: Vec3, direction: Vec3) {
+    fn add(&mut self, g: &GPixel, texture2: Vec3, direction: Vec3) {
+        let (depth, normal, albedo) = (g.depth, g.normal, g.albedo);
         self.n += 1;
         let inv = 1.0 / self.n as f32;
         let d = depth - self.depth;
         self.depth += d * inv;
         self.depth_m2 += d * (depth - self.depth);
+        self.roughness += (g.roughness - self.roughness) * inv;
+        self.metallic += (g.metallic - self.metallic) * inv;
         for (mean, m2, x) in [
             (&mut self.normal, &mut self.normal_m2, normal),
             (&mut self.albedo, &mut self.albedo_m2, albedo),
@@ -113,6 +119,9 @@ pub struct Filter {
     /// The variance of the mean of the direct and indirect light's luminance (NaN below two
     /// samples).
     light_variance: Vec<[f32; 2]>,
+    /// Means of the first hit's roughness and metallic factor (the data-driven filter's).
+    roughness: Vec<f32>,
+    metallic: Vec<f32>,
     /// The filtered image (empty when the filter is off).
     pub image: Vec<Vec3>,
     data_driven: DataDriven,
@@ -138,13 +147,7 @@ impl Filter {
             .for_each(|(s, (g, l))| {
                 if l.stats.n > 0 && g.depth.is_finite() {
                     s.emitter |= g.emitter;
-                    s.add(
-                        g.depth,
-                        g.normal,
-                        g.albedo,
-                        l.bounce.albedo,
-                        l.bounce.direction,
-                    );
+                    s.add(g, l.bounce.albedo, l.bounce.direction);
                 }
             });
     }
@@ -237,6 +240,8 @@ impl Filter {
         self.variance.resize(n, [0.0; 5]);
         self.light_variance.resize(n, [0.0; 2]);
         self.stats.resize(n, FeatureStats::default());
+        self.roughness.resize(n, 0.0);
+        self.metallic.resize(n, 0.0);
         (
             &mut self.direct,
             &mut self.indirect,
@@ -252,26 +257,34 @@ impl Filter {
                     .zip(self.light_variance.par_iter_mut()),
             )
             .zip(history.par_iter().zip(self.stats.par_iter()))
-            .for_each(|(((d, i, depth, normal, albedo, t2), (v, lv)), (h, s))| {
-                *lv = if h.n >= 2 {
-                    let k = 1.0 / ((h.n - 1) as f32 * h.n as f32);
-                    [luminance(h.direct.m2) * k, luminance(h.indirect.m2) * k]
-                } else {
-                    [f32::NAN; 2]
-                };
-                *d = h.direct.mean;
-                *i = h.indirect.mean;
-                // The sky and light sources pass through.
-                *depth = if s.n > 0 && !s.emitter {
-                    s.depth
-                } else {
-                    f32::INFINITY
-                };
-                *normal = s.normal;
-                *albedo = s.albedo;
-                *t2 = s.texture2;
-                *v = s.variance();
-            });
+            .zip(
+                self.roughness
+                    .par_iter_mut()
+                    .zip(self.metallic.par_iter_mut()),
+            )
+            .for_each(
+                |((((d, i, depth, normal, albedo, t2), (v, lv)), (h, s)), (r, m))| {
+                    *lv = if h.n >= 2 {
+                        let k = 1.0 / ((h.n - 1) as f32 * h.n as f32);
+                        [luminance(h.direct.m2) * k, luminance(h.indirect.m2) * k]
+                    } else {
+                        [f32::NAN; 2]
+                    };
+                    *d = h.direct.mean;
+                    *i = h.indirect.mean;
+                    // The sky and light sources pass through.
+                    *depth = if s.n > 0 && !s.emitter {
+                        s.depth
+                    } else {
+                        f32::INFINITY
+                    };
+                    *normal = s.normal;
+                    *albedo = s.albedo;
+                    *t2 = s.texture2;
+                    *v = s.variance();
+                    (*r, *m) = (s.roughness, s.metallic);
+                },
+            );
         let features = Features {
             width,
             height,
@@ -283,6 +296,8 @@ impl Filter {
             texture2: &self.texture2,
             variance: &self.variance,
             light_variance: &self.light_variance,
+            roughness: &self.roughness,
+            metallic: &self.metallic,
         };
         self.data_driven.filter(&features, config, &mut self.image)
     }
@@ -320,7 +335,8 @@ impl Filter {
                 + self.texture2.capacity()
                 + self.image.capacity())
                 * size_of::<Vec3>()
-            + self.depth.capacity() * size_of::<f32>()
+            + (self.depth.capacity() + self.roughness.capacity() + self.metallic.capacity())
+                * size_of::<f32>()
             + self.variance.capacity() * size_of::<[f32; 5]>()
     }
 }
