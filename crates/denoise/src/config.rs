@@ -33,6 +33,8 @@
 //!   standard error taken over its 3x3 neighbourhood's ([`crate::data_driven`]).
 //! - **Glossy normals** (`sigma_normal_lobe`, 1): a metallic pixel's normal test is as tight
 //!   as its reflection lobe ([`crate::data_driven`]).
+//! - **Silhouettes against the sky** (`sky_coverage`, on): filtered as their hits alone
+//!   (the frame pipeline's `filter` pass).
 //! - **Variance scales** `s_f` (depth, normal, texture, direction, texture2) are not published;
 //!   1 each by choice.
 
@@ -162,6 +164,12 @@ pub struct FilterConfig {
     /// (roughness squared, at least 0.01), blended by the metallic factor; 0 keeps
     /// `sigma_normal` everywhere, the thesis's test (not in the thesis).
     pub sigma_normal_lobe: f32,
+    /// Data-driven, in the frame: a pixel only some of whose samples hit a surface (a
+    /// silhouette against the sky) is filtered as its hits alone (the sky's light taken out,
+    /// the rest divided by the hits' share; the filtered light scaled back and the sky's
+    /// added) where the frame knows every sample's sky (one sample per frame); off, or where
+    /// it does not, the mixture is filtered with its hits' features (not in the thesis).
+    pub sky_coverage: bool,
     /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
     pub rpf_boxes: Vec<u32>,
     /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
@@ -201,6 +209,7 @@ impl Default for FilterConfig {
             error_blur: false,
             error_pair: ErrorPair::Sum,
             sigma_normal_lobe: 1.0,
+            sky_coverage: true,
             rpf_boxes: vec![55, 35, 17, 7],
             rpf_noise: 0.02,
             rpf_outliers: true,

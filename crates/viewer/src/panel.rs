@@ -458,6 +458,10 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             });
         });
         ui.checkbox(&mut f.demodulate, "demodulate by the albedo");
+        ui.checkbox(
+            &mut f.sky_coverage,
+            "silhouettes against the sky filtered as their hits alone",
+        );
         ui.add_enabled(
             f.colour_units == ColourUnits::Variance,
             egui::Checkbox::new(
