@@ -133,7 +133,7 @@ fn add(out: &mut PathSample, vertex: u32, l: Vec3) {
 
 /// Replaces NaN and infinite samples by zero (one bad sample must not ruin a reference).
 #[inline]
-pub(crate) fn finite_or_zero(v: Vec3) -> Vec3 {
+fn finite_or_zero(v: Vec3) -> Vec3 {
     if v.is_finite() {
         v
     } else {

@@ -22,7 +22,7 @@
 //!   hits, and (`sky_coverage`, not in the thesis) as its hits alone: its mean light is
 //!   `c L_s + S`, with `c` the share of its samples that hit a surface, `L_s` their mean light
 //!   and `S` the mean over all its samples of the environment's radiance the escaped ones saw
-//!   ([`GPixel::sky`]), so the filter is given `(L - S) / c`, which is like its neighbours'
+//!   (their light), so the filter is given `(L - S) / c`, which is like its neighbours'
 //!   light, and the pixel shows `c F + S` of the filtered `F`. Before, the sky's light was
 //!   filtered as the surface's: a leaf's edge against a grey sky spread the sky into the
 //!   leaf, and the leaf's red into the sky (measured on the garden: CIELUV MSE at 8 spp 0.36x
@@ -30,8 +30,6 @@
 //!   are exact where the statistics gathered every sample of the history (one per frame);
 //!   elsewhere (several samples per frame, a history carried over by reprojection) the
 //!   mixture is filtered as before. The pixel's standard error stays its mixture's.
-//!
-//! [`GPixel::sky`]: super::gbuffer::GPixel::sky
 //! - **Light sources** (not in the thesis, whose paths end at a light): a pixel any of whose
 //!   samples saw a light source first (an emissive triangle of the light list: textured
 //!   emission counts where its texels are not black) is passed through like the sky and is
@@ -64,8 +62,8 @@ struct FeatureStats {
     /// history's, when it holds nothing else.
     frames: u32,
     samples: u32,
-    /// Mean over the frames of the environment's radiance their sample saw (zero where it
-    /// hit a surface).
+    /// Mean over the frames of the environment's radiance their first sample saw (zero where
+    /// it hit a surface).
     sky: Vec3,
     depth: f32,
     depth_m2: f32,
@@ -171,7 +169,14 @@ impl Filter {
                 if l.stats.n > 0 {
                     s.frames += 1;
                     s.samples = s.samples.saturating_add(l.stats.n);
-                    s.sky += (g.sky - s.sky) / s.frames as f32;
+                    // An escaped sample's light is the environment's radiance (the lighting
+                    // pass's direct light; used where the frame traced one sample).
+                    let sky = if g.depth.is_finite() {
+                        Vec3::ZERO
+                    } else {
+                        l.stats.direct.mean
+                    };
+                    s.sky += (sky - s.sky) / s.frames as f32;
                 }
                 if l.stats.n > 0 && g.depth.is_finite() {
                     s.emitter |= g.emitter;
@@ -424,12 +429,9 @@ mod tests {
                         ..GPixel::default()
                     }
                 } else {
-                    GPixel {
-                        sky: Vec3::splat(2.0),
-                        ..GPixel::default()
-                    }
+                    GPixel::default()
                 };
-                let light = if hit { Vec3::splat(0.5) } else { g.sky };
+                let light = Vec3::splat(if hit { 0.5 } else { 2.0 });
                 l.stats = PixelStats::one(light, Vec3::ZERO);
                 history[i].merge(&l.stats);
             }

@@ -8,7 +8,7 @@ use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::Rng;
 
 use crate::camera::Camera;
-use crate::path::{finite_or_zero, CameraSample, PathTracer, Vertex};
+use crate::path::{CameraSample, PathTracer, Vertex};
 use crate::sampler::PixelSampler;
 
 /// Material index of a pixel whose camera ray escaped.
@@ -36,9 +36,6 @@ pub struct GPixel {
     pub motion: Vec2,
     /// The first hit is on a light source (an emissive triangle of the light list).
     pub emitter: bool,
-    /// Where the ray escaped, the environment's radiance it brings (what the lighting pass
-    /// adds to the sample's direct light); zero on a surface.
-    pub sky: Vec3,
 }
 
 /// Where a camera path goes on after its first hit: what the primary pass hands the lighting
@@ -63,7 +60,6 @@ impl Default for GPixel {
             depth: f32::INFINITY,
             motion: Vec2::ZERO,
             emitter: false,
-            sky: Vec3::ZERO,
         }
     }
 }
@@ -134,11 +130,9 @@ pub fn primary(
                 .lights
                 .triangle_light(v.surface.instance, v.surface.triangle)
                 .is_some(),
-            sky: Vec3::ZERO,
         },
         None => GPixel {
             motion: now_and_then(&|c| c.project_direction(ray.direction)),
-            sky: finite_or_zero(tracer.world.lights.environment_radiance(ray.direction)),
             ..GPixel::default()
         },
     };
