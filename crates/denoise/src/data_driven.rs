@@ -43,7 +43,7 @@
 //!   part of the environment: the pixel's normal test uses a sigma of at most
 //!   `sigma_normal_lobe` times the GGX alpha (roughness squared), blended by the metallic
 //!   factor (measured on DamagedHelmet, whose light is mostly its metal's reflections: CIELUV
-//!   MSE at 8 spp 1.04x the unfiltered image's without, 0.85x with; BENCHMARKS.md, "Seed
+//!   MSE at 8 spp 1.04x the unfiltered image's without, 0.84x with; BENCHMARKS.md, "Seed
 //!   001"). A dielectric's light is mostly its diffuse part and keeps the thesis's test.
 //! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
 //!   and cancels in the normalisation, so it is not computed.
