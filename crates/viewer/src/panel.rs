@@ -415,7 +415,7 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         sigma(ui, &mut f.sigma_normal, "sigma normal");
         ui.add(
             egui::Slider::new(&mut f.sigma_normal_lobe, 0.0..=4.0)
-                .text("normal sigma of metal, x GGX alpha (0: the thesis's)"),
+                .text("sigma normal of metal (x alpha)"),
         );
         sigma(ui, &mut f.sigma_texture, "sigma texture");
         ui.checkbox(&mut f.texture2_test, "texture2 test (thesis)");
@@ -458,10 +458,7 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             });
         });
         ui.checkbox(&mut f.demodulate, "demodulate by the albedo");
-        ui.checkbox(
-            &mut f.sky_coverage,
-            "silhouettes against the sky filtered as their hits alone",
-        );
+        ui.checkbox(&mut f.sky_coverage, "silhouettes: their hits alone");
         ui.add_enabled(
             f.colour_units == ColourUnits::Variance,
             egui::Checkbox::new(
