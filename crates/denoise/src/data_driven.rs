@@ -528,8 +528,8 @@ struct Scales {
     direct: f32,
     indirect: f32,
     depth: f32,
-    normal: f32,
-    /// `sigma_normal` and `sigma_normal_lobe` ([`Scales::normal_at`]).
+    /// `sigma_normal` and `sigma_normal_lobe`: the normal test's coefficient depends on the
+    /// pixel ([`Scales::normal_at`]).
     sigma_normal: f32,
     lobe: f32,
     texture: f32,
@@ -544,17 +544,15 @@ struct Scales {
 
 impl Scales {
     fn new(c: &FilterConfig) -> Self {
-        let k = |s: f32| 1.0 / (2.0 * s * s);
         Self {
-            direct: k(c.sigma_direct),
-            indirect: k(c.sigma_indirect),
-            depth: k(c.sigma_depth),
-            normal: k(c.sigma_normal),
+            direct: coefficient(c.sigma_direct),
+            indirect: coefficient(c.sigma_indirect),
+            depth: coefficient(c.sigma_depth),
             sigma_normal: c.sigma_normal,
             lobe: c.sigma_normal_lobe,
-            texture: k(c.sigma_texture),
+            texture: coefficient(c.sigma_texture),
             texture2: if c.texture2_test {
-                k(c.sigma_texture2)
+                coefficient(c.sigma_texture2)
             } else {
                 0.0
             },
@@ -576,13 +574,17 @@ impl Scales {
             metallic.clamp(0.0, 1.0)
         };
         if self.lobe == 0.0 || m == 0.0 {
-            return self.normal;
+            return coefficient(self.sigma_normal);
         }
         let alpha = (roughness * roughness).max(0.01);
         let lobe = (self.lobe * alpha).min(self.sigma_normal);
-        let sigma = self.sigma_normal + m * (lobe - self.sigma_normal);
-        1.0 / (2.0 * sigma * sigma)
+        coefficient(self.sigma_normal + m * (lobe - self.sigma_normal))
     }
+}
+
+/// A test's coefficient `1 / (2 sigma^2)`.
+fn coefficient(sigma: f32) -> f32 {
+    1.0 / (2.0 * sigma * sigma)
 }
 
 /// One row of the image.
@@ -740,14 +742,19 @@ impl Row<'_> {
             c.indirect[k] = load(F1 + k);
         }
         let width = l.width;
-        // The feature variances of the block's pixels (zeros past the row's end).
-        let row = &self.features.variance[self.y * width..(self.y + 1) * width];
+        // The feature variances and materials of the block's pixels (zeros, and a rough
+        // dielectric, past the row's end).
+        let (f, row) = (self.features, self.y * width..(self.y + 1) * width);
+        let (variance, roughness, metallic) = (
+            &f.variance[row.clone()],
+            &f.roughness[row.clone()],
+            &f.metallic[row],
+        );
         let variances: [[f32; 5]; LANES] =
-            std::array::from_fn(|j| row.get(x0 + j).copied().unwrap_or([0.0; 5]));
+            std::array::from_fn(|j| variance.get(x0 + j).copied().unwrap_or([0.0; 5]));
         let material = |j: usize| {
-            let i = self.y * width + x0 + j;
-            let f = self.features;
-            (x0 + j < width).then(|| (f.roughness[i], f.metallic[i]))
+            let at = |v: &[f32], default| v.get(x0 + j).copied().unwrap_or(default);
+            (at(roughness, 1.0), at(metallic, 0.0))
         };
         for (j, variance) in variances.into_iter().enumerate() {
             let depth_scale = if s.relative_depth {
@@ -763,8 +770,8 @@ impl Row<'_> {
             // The depth scale folded into the coefficient: c (dD / d)^2 = (c / d^2) dD^2.
             let depth_variance = variance[DEPTH] * depth_scale * depth_scale;
             c.c_depth[j] = lowered(s.depth, DEPTH, depth_variance) * depth_scale * depth_scale;
-            let normal = material(j).map_or(s.normal, |(r, m)| s.normal_at(r, m));
-            c.c_normal[j] = lowered(normal, NORMAL, variance[NORMAL]);
+            let (r, m) = material(j);
+            c.c_normal[j] = lowered(s.normal_at(r, m), NORMAL, variance[NORMAL]);
             c.c_texture[j] = lowered(s.texture, TEXTURE, variance[TEXTURE]);
             c.c_texture2[j] = lowered(s.texture2, TEXTURE2, variance[TEXTURE2]);
             // The centre's half of the colour scales (the neighbour's is its plane); with
