@@ -492,6 +492,8 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         holes: true,
         atrous_iterations: 3,
         atrous_kernel: 3,
+        sigma_normal_lobe: 2.0,
+        sky_coverage: false,
         ..Default::default()
     };
     let run = |cfg: &Config| {
