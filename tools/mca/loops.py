@@ -63,8 +63,10 @@ def main():
         cycles = int(re.search(r"Total Cycles:\s+(\d+)", report).group(1)) / 300
         block = re.search(r"Block RThroughput:\s+([\d.]+)", report).group(1)
         spills = sum("(%rsp)" in t for t in lines)
+        divisions = sum(t.startswith("vdiv") for t in lines)
         print(f"loop {target:x}-{address:x}: {len(lines)} instructions, {spills} stack "
-              f"references, {cycles:.1f} cycles per iteration, block throughput {block}")
+              f"references, {divisions} divisions, {cycles:.1f} cycles per iteration, "
+              f"block throughput {block}")
 
 
 if __name__ == "__main__":

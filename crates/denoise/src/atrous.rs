@@ -553,10 +553,22 @@ impl Pass<'_> {
     /// they are, and the luminances of the result. (No closures here: see `simd::exp_neg`.)
     #[inline(always)]
     fn group<V: F32xN, const R: i64, const S: usize>(&self, x0: i64, y: i64, row: &mut [f32]) {
-        let s = self.sums::<V, R, S>(x0, y);
         let g = self.moving;
         let (v, lum) = (v(S), lum(S));
-        let through = self.st::<V>(THROUGH, x0, y).ne(V::splat(0.0));
+        let through_plane = self.st::<V>(THROUGH, x0, y);
+        let through = through_plane.ne(V::splat(0.0));
+        // A group whose pixels all pass through (the sky of an outdoor frame; lanes past the
+        // row's end do not) keeps them without running the kernel (the sums are not used).
+        let s = if V::any(through_plane.ne(V::splat(1.0))) {
+            self.sums::<V, R, S>(x0, y)
+        } else {
+            let (one, zero) = (V::splat(1.0), V::splat(0.0));
+            Sums {
+                w: [one; S],
+                light: [[zero; 3]; S],
+                var: [zero; S],
+            }
+        };
         let n = V::N.min(g.width - x0 as usize);
         let [r, gr, b] = [
             V::splat(LUMINANCE[0]),

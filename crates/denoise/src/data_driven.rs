@@ -680,6 +680,24 @@ impl Row<'_> {
     fn run_blocks<V: F32xN>(&self, out: &mut [Vec3]) {
         let width = self.layout.width;
         for x0 in (0..width).step_by(V::N) {
+            // The block's pixels, as slices of their length (no bounds checks in the loop).
+            let n = V::N.min(width - x0);
+            let (f, i0) = (self.features, self.y * width + x0);
+            let (direct, indirect) = (&f.direct[i0..i0 + n], &f.indirect[i0..i0 + n]);
+            let at = self.layout.at(x0, self.y) + VALID * self.layout.pitch;
+            let valid = &self.planes[at..at + n];
+            // Lanes past the row's end are its padding (not valid).
+            let block: &Lanes = self.planes[at..at + LANES]
+                .try_into()
+                .expect("a block of lanes");
+            if !V::any(lanes::<V>(block).ne(V::splat(0.0))) {
+                // Sky or bad pixels only (much of an outdoor frame): as they are, the window
+                // not run.
+                for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
+                    *o = direct[j] + indirect[j];
+                }
+                continue;
+            }
             let centre = self.centre(x0);
             let sums = match (self.scales.sum, self.scales.texture2 > 0.0) {
                 (true, false) => self.sums::<V, true, false>(x0, &centre),
@@ -693,13 +711,7 @@ impl Row<'_> {
                 *light = (sums.direct[c] / sums.direct_w + sums.indirect[c] / sums.indirect_w)
                     .to_array();
             }
-            // The block's pixels, as slices of their length (no bounds checks in the loop).
-            let n = V::N.min(width - x0);
-            let (f, i0) = (self.features, self.y * width + x0);
-            let (direct, indirect) = (&f.direct[i0..i0 + n], &f.indirect[i0..i0 + n]);
             let albedo = &f.albedo[i0..i0 + n];
-            let at = self.layout.at(x0, self.y) + VALID * self.layout.pitch;
-            let valid = &self.planes[at..at + n];
             for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
                 *o = if valid[j] == 0.0 {
                     // Sky or a bad pixel: as it is.
