@@ -12,7 +12,8 @@
 //! in the cache from one output row to the next (in image order, the holes of 8 and 16 rows
 //! took a third longer than those of 1). Each 16-pixel group writes its result, the pixels that
 //! pass through kept, and the luminances the next pass tests, in lanes; the luminance test's
-//! sigma (the blurred variance) is worked out in the group from the variance planes.
+//! sigma (the blurred variance) is worked out in the group from the variance planes. A group
+//! whose pixels all pass through does not run the kernel (an outdoor frame's sky).
 //!
 //! The passes are bound by their taps' dependency chains rather than by loads or arithmetic
 //! (`llvm-mca` on the tap loop), so the loop is kept short: the taps' offsets, kernel weights

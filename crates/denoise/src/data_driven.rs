@@ -75,7 +75,9 @@
 //! - **Sky and bad pixels.** A pixel whose depth is not finite (the sky) or any of whose inputs
 //!   is not finite (a NaN or infinite sample) is passed through unfiltered and is nobody's
 //!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not
-//!   neighbours either (the window is cut at the borders, not clamped).
+//!   neighbours either (the window is cut at the borders, not clamped). A block of centres
+//!   that are all sky or bad does not run the window (an outdoor frame's sky: the garden's
+//!   filter pass took a third of its time after this).
 //! - Windows are laid over the padded planes 16 centre pixels at a time, one row of them: each
 //!   tap is then 16 neighbours next to each other in memory, one value of [`crate::simd`]'s
 //!   lanes (AVX-512, or 8 pixels at a time with AVX2, with fused multiply-adds where the
