@@ -414,7 +414,7 @@ impl Groups for FillRow<'_, '_> {
         ];
         // The variances and errors are two values a pixel.
         let variance = run2::<V, _>(f.light_variance, i0, n);
-        let errors = run2::<V, _>(s.errors, i0, n);
+        let errors = run2::<V, _>(&s.errors, i0, n);
         // `valid_pixel`.
         let mut valid = V::and(lanes, finite(depth));
         for c in vectors.iter().flatten() {
