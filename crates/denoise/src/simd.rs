@@ -69,16 +69,6 @@ pub trait F32xN:
     /// # Safety
     /// Every address of a lane where `m` is readable, and `index * stride` fits an `i32`.
     unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self;
-    /// The `2 N` values from `p` on, deinterleaved: lane `j` of value `k` is `p[2 j + k]`.
-    ///
-    /// # Safety
-    /// `p..p + 2 N` is readable.
-    unsafe fn load2(p: *const f32) -> [Self; 2];
-    /// The `3 N` values from `p` on, deinterleaved: lane `j` of value `k` is `p[3 j + k]`.
-    ///
-    /// # Safety
-    /// `p..p + 3 N` is readable.
-    unsafe fn load3(p: *const f32) -> [Self; 3];
 }
 
 /// The kinds of lanes, narrowest first.
@@ -230,64 +220,6 @@ pub unsafe fn gather3<V: F32xN>(buffer: &[Vec3], index: V, m: V::Mask) -> [V; 3]
     c
 }
 
-/// The pixels `i0..i0 + n` of `buffer` (`n` at most [`F32xN::N`]) in lanes, 0 past them:
-/// one load where the group is whole.
-#[inline(always)]
-pub fn run<V: F32xN>(buffer: &[f32], i0: usize, n: usize) -> V {
-    let run = &buffer[i0..i0 + n];
-    if n == V::N {
-        // SAFETY: `run` has `N` values.
-        unsafe { V::load(run.as_ptr()) }
-    } else {
-        let mut a = [0.0; LANES];
-        a[..n].copy_from_slice(run);
-        // SAFETY: `a` has `LANES` values.
-        unsafe { V::load(a.as_ptr()) }
-    }
-}
-
-/// The two values of each of the pixels `i0..i0 + n` of `buffer` (`n` at most
-/// [`F32xN::N`]) in lanes, 0 past them: two loads deinterleaved where the group is whole.
-#[inline(always)]
-pub fn run2<V: F32xN, T: Pair>(buffer: &[T], i0: usize, n: usize) -> [V; 2] {
-    let run = &buffer[i0..i0 + n];
-    if n == V::N {
-        // SAFETY: `run` has `2 N` values (a `Pair` is two `f32`s).
-        unsafe { V::load2(run.as_ptr().cast()) }
-    } else {
-        let mut a = [T::default(); LANES];
-        a[..n].copy_from_slice(run);
-        // SAFETY: `a` has `2 LANES` values.
-        unsafe { V::load2(a.as_ptr().cast()) }
-    }
-}
-
-/// Two `f32`s, one after the other ([`run2`]).
-///
-/// # Safety
-/// The type is laid out as `[f32; 2]`.
-pub unsafe trait Pair: Copy + Default {}
-// SAFETY: an array of two `f32`s.
-unsafe impl Pair for [f32; 2] {}
-// SAFETY: `glam::Vec2` is `#[repr(C)]` of two `f32`s.
-unsafe impl Pair for glam::Vec2 {}
-
-/// The channels of the pixels `i0..i0 + n` of `buffer` (`n` at most [`F32xN::N`]) in
-/// lanes, 0 past them: three loads deinterleaved where the group is whole.
-#[inline(always)]
-pub fn run3<V: F32xN>(buffer: &[Vec3], i0: usize, n: usize) -> [V; 3] {
-    let run = &buffer[i0..i0 + n];
-    if n == V::N {
-        // SAFETY: `run` has `3 N` values (a `Vec3` is three `f32`s).
-        unsafe { V::load3(run.as_ptr().cast()) }
-    } else {
-        let mut a = [Vec3::ZERO; LANES];
-        a[..n].copy_from_slice(run);
-        // SAFETY: `a` has `3 LANES` values.
-        unsafe { V::load3(a.as_ptr().cast()) }
-    }
-}
-
 /// [`pathlight_core::color::luminance`] in lanes (the same products and sums).
 #[inline(always)]
 pub fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
@@ -432,16 +364,6 @@ impl F32xN for Portable {
             }
         }))
     }
-    #[inline(always)]
-    unsafe fn load2(p: *const f32) -> [Self; 2] {
-        // SAFETY: the caller's contract.
-        std::array::from_fn(|k| Self(std::array::from_fn(|j| unsafe { *p.add(2 * j + k) })))
-    }
-    #[inline(always)]
-    unsafe fn load3(p: *const f32) -> [Self; 3] {
-        // SAFETY: the caller's contract.
-        std::array::from_fn(|k| Self(std::array::from_fn(|j| unsafe { *p.add(3 * j + k) })))
-    }
 }
 
 /// One AVX-512 register (see the module's safety note).
@@ -575,74 +497,7 @@ impl F32xN for Avx512 {
             base
         )))
     }
-    #[inline(always)]
-    unsafe fn load2(p: *const f32) -> [Self; 2] {
-        // Lane j of value k is value 2 j + k of the two registers (index bit 4: the second).
-        let (a, b) = avx512!((_mm512_loadu_ps(p), _mm512_loadu_ps(p.add(16))));
-        std::array::from_fn(|k| {
-            let index = avx512!(_mm512_loadu_si512(STRIDE2[k].as_ptr().cast()));
-            Self(avx512!(_mm512_permutex2var_ps(a, index, b)))
-        })
-    }
-    #[inline(always)]
-    unsafe fn load3(p: *const f32) -> [Self; 3] {
-        // Lanes whose value 3 j + k lies in the first two registers from them, then the
-        // others from the third.
-        let (a, b, c) = avx512!((
-            _mm512_loadu_ps(p),
-            _mm512_loadu_ps(p.add(16)),
-            _mm512_loadu_ps(p.add(32))
-        ));
-        std::array::from_fn(|k| {
-            let (first, second) = avx512!((
-                _mm512_loadu_si512(STRIDE3[k][0].as_ptr().cast()),
-                _mm512_loadu_si512(STRIDE3[k][1].as_ptr().cast())
-            ));
-            let t = avx512!(_mm512_permutex2var_ps(a, first, b));
-            Self(avx512!(_mm512_permutex2var_ps(t, second, c)))
-        })
-    }
 }
-
-/// [`Avx512::load2`]'s permutations: lane `j` of value `k` takes value `2 j + k` of 32.
-#[cfg(target_arch = "x86_64")]
-const STRIDE2: [[i32; 16]; 2] = {
-    let mut t = [[0; 16]; 2];
-    let mut k = 0;
-    while k < 2 {
-        let mut j = 0;
-        while j < 16 {
-            t[k][j] = (2 * j + k) as i32;
-            j += 1;
-        }
-        k += 1;
-    }
-    t
-};
-
-/// [`Avx512::load3`]'s two permutations per value `k`: lane `j` wants value `v = 3 j + k` of
-/// 48; the first takes `v` of the first 32 (any lane where `v >= 32`), the second keeps those
-/// lanes or takes value `v - 32` of the third register (index bit 4).
-#[cfg(target_arch = "x86_64")]
-const STRIDE3: [[[i32; 16]; 2]; 3] = {
-    let mut t = [[[0; 16]; 2]; 3];
-    let mut k = 0;
-    while k < 3 {
-        let mut j = 0;
-        while j < 16 {
-            let v = 3 * j + k;
-            t[k][0][j] = (v % 32) as i32;
-            t[k][1][j] = if v < 32 {
-                j as i32
-            } else {
-                (16 + v - 32) as i32
-            };
-            j += 1;
-        }
-        k += 1;
-    }
-    t
-};
 
 /// One AVX2 register, eight lanes (see the module's safety note).
 #[cfg(target_arch = "x86_64")]
@@ -774,18 +629,6 @@ impl F32xN for Avx2 {
             m
         )))
     }
-    #[inline(always)]
-    unsafe fn load2(p: *const f32) -> [Self; 2] {
-        let offsets = avx2!(_mm256_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14));
-        // SAFETY: the caller's contract.
-        std::array::from_fn(|k| Self(avx2!(_mm256_i32gather_ps::<4>(p.add(k), offsets))))
-    }
-    #[inline(always)]
-    unsafe fn load3(p: *const f32) -> [Self; 3] {
-        let offsets = avx2!(_mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21));
-        // SAFETY: the caller's contract.
-        std::array::from_fn(|k| Self(avx2!(_mm256_i32gather_ps::<4>(p.add(k), offsets))))
-    }
 }
 
 #[cfg(test)]
@@ -885,59 +728,6 @@ mod tests {
                 }
                 for x in [f32::NAN, f32::NEG_INFINITY, -100.0] {
                     assert!(exp_neg(V::splat(x)).to_array()[0] < 1e-37, "e^{x}");
-                }
-            }
-        }
-        for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
-            dispatch(isa, Check);
-        }
-    }
-
-    /// `run`, `run2` and `run3` give each pixel's values in its lane, whole groups (the
-    /// deinterleaving loads) and partial ones, in every lane type this processor has.
-    #[test]
-    fn runs_of_pixels_deinterleave_into_lanes() {
-        struct Check;
-        impl Kernel<()> for Check {
-            fn run<V: F32xN>(self) {
-                let count = 3 * LANES + 5;
-                let one: Vec<f32> = (0..count).map(|i| i as f32 + 0.25).collect();
-                let two: Vec<[f32; 2]> = (0..count).map(|i| [i as f32, -(i as f32)]).collect();
-                let three: Vec<Vec3> = (0..count)
-                    .map(|i| Vec3::new(i as f32, 1000.0 + i as f32, -0.5 * i as f32))
-                    .collect();
-                for i0 in [0, 1, 7, LANES + 3, count - V::N, count - 5] {
-                    for n in [V::N, V::N - 1, 1] {
-                        if i0 + n > count {
-                            continue;
-                        }
-                        let lane = |v: V, j: usize| v.to_array()[j];
-                        let (a, b, c) = (
-                            run::<V>(&one, i0, n),
-                            run2::<V, _>(&two, i0, n),
-                            run3::<V>(&three, i0, n),
-                        );
-                        for j in 0..V::N {
-                            let i = i0 + j;
-                            let inside = j < n;
-                            let want = |x: f32| if inside { x } else { 0.0 };
-                            assert_eq!(lane(a, j), want(one.get(i).copied().unwrap_or(0.0)));
-                            for k in 0..2 {
-                                assert_eq!(
-                                    lane(b[k], j),
-                                    want(two.get(i).map_or(0.0, |p| p[k])),
-                                    "run2 {i0} {n} {j} {k}"
-                                );
-                            }
-                            for k in 0..3 {
-                                assert_eq!(
-                                    lane(c[k], j),
-                                    want(three.get(i).map_or(0.0, |p| p[k])),
-                                    "run3 {i0} {n} {j} {k}"
-                                );
-                            }
-                        }
-                    }
                 }
             }
         }

@@ -57,8 +57,8 @@ use crate::atrous::{
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
 use crate::simd::{
-    dispatch, gather3, iota, load_first, luminance_lanes, max, run, run2, run3, store_first,
-    ByGroups, F32xN, Groups, LANES,
+    dispatch, gather3, iota, load_first, luminance_lanes, max, store_first, ByGroups, F32xN,
+    Groups, LANES,
 };
 use crate::{simd, FilterError};
 
@@ -550,14 +550,26 @@ impl Groups for Temporal<'_, '_> {
         let (zero, one) = (splat(0.0), splat(1.0));
         let lane = iota::<V>();
         let valid = splat(n as f32).gt(lane);
-        let (albedo, direct, indirect, normal) = (
-            run3::<V>(f.albedo, i0, n),
-            run3::<V>(f.direct, i0, n),
-            run3::<V>(f.indirect, i0, n),
-            run3::<V>(f.normal, i0, n),
-        );
-        let depth: V = run(f.depth, i0, n);
-        let [mx, my] = run2::<V, _>(f.motion, i0, n);
+        let index = splat(i0 as f32) + lane;
+        // SAFETY: the lanes where `valid` index this row's pixels (every buffer has the
+        // image's).
+        let (albedo, direct, indirect, normal) = unsafe {
+            (
+                gather3(f.albedo, index, valid),
+                gather3(f.direct, index, valid),
+                gather3(f.indirect, index, valid),
+                gather3(f.normal, index, valid),
+            )
+        };
+        // SAFETY: as above.
+        let (depth, mx, my) = unsafe {
+            let motion = f.motion.as_ptr().cast::<f32>();
+            (
+                V::gather(f.depth.as_ptr(), index, 1, valid),
+                V::gather(motion, index, 2, valid),
+                V::gather(motion.add(1), index, 2, valid),
+            )
+        };
         // Not passed through (`passes_through`).
         let live = V::and(valid, live_lanes(f, i0, n, depth));
 
@@ -788,7 +800,8 @@ impl Groups for Output<'_, '_> {
             }
         }
         let through = load_first::<V>(&self.view.through()[x0..]).ne(splat(0.0));
-        let albedo = run3::<V>(f.albedo, i0, n);
+        // SAFETY: the lanes where `valid` index this row's pixels.
+        let albedo = unsafe { gather3(f.albedo, index, valid) };
         let mut out = [splat(0.0); 3];
         for ((out, &light), &albedo) in out.iter_mut().zip(&light).zip(&albedo) {
             *out = light * demodulator_lanes(albedo);
