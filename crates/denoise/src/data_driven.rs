@@ -686,12 +686,12 @@ impl Row<'_> {
             let n = V::N.min(width - x0);
             let (f, i0) = (self.features, self.y * width + x0);
             let (direct, indirect) = (&f.direct[i0..i0 + n], &f.indirect[i0..i0 + n]);
+            // The block's validity (lanes past the row's end are its padding: not valid).
             let at = self.layout.at(x0, self.y) + VALID * self.layout.pitch;
-            let valid = &self.planes[at..at + n];
-            // Lanes past the row's end are its padding (not valid).
             let block: &Lanes = self.planes[at..at + LANES]
                 .try_into()
                 .expect("a block of lanes");
+            let valid = &block[..n];
             if !V::any(lanes::<V>(block).ne(V::splat(0.0))) {
                 // Sky or bad pixels only (much of an outdoor frame): as they are, the window
                 // not run.

@@ -166,22 +166,22 @@ impl Filter {
             .par_iter_mut()
             .zip(gbuffer.pixels.par_iter().zip(lighting.par_iter()))
             .for_each(|(s, (g, l))| {
-                if l.stats.n > 0 {
-                    s.frames += 1;
-                    s.samples = s.samples.saturating_add(l.stats.n);
-                    // An escaped sample's light is the environment's radiance (the lighting
-                    // pass's direct light; used where the frame traced one sample).
-                    let sky = if g.depth.is_finite() {
-                        Vec3::ZERO
-                    } else {
-                        l.stats.direct.mean
-                    };
-                    s.sky += (sky - s.sky) / s.frames as f32;
+                if l.stats.n == 0 {
+                    return;
                 }
-                if l.stats.n > 0 && g.depth.is_finite() {
+                s.frames += 1;
+                s.samples = s.samples.saturating_add(l.stats.n);
+                // A hit adds its features; an escaped sample's light is the environment's
+                // radiance (the lighting pass's direct light; used where the frame traced one
+                // sample).
+                let sky = if g.depth.is_finite() {
                     s.emitter |= g.emitter;
                     s.add(g, l.bounce.albedo, l.bounce.direction);
-                }
+                    Vec3::ZERO
+                } else {
+                    l.stats.direct.mean
+                };
+                s.sky += (sky - s.sky) / s.frames as f32;
             });
     }
 
