@@ -191,6 +191,7 @@ fn svgf(c: &mut Criterion) {
                 iterations: 5,
                 kernel,
                 split,
+                ..SvgfParams::default()
             };
             // The history brought to its full length when the benchmark runs (not for the
             // variants a filter leaves out: the scalar ones take seconds at 1280x720).

@@ -131,6 +131,14 @@ pub struct FilterConfig {
     /// false filters their sum as one signal (not in the paper: about 40% fewer operations
     /// per tap).
     pub svgf_split: bool,
+    /// SVGF: the reprojection's normal test. `k > 0` (16 by default) keeps a previous pixel
+    /// whose normal lies within `k (w + 0.01)` of this one's, `w` this pixel's normal width
+    /// (over its four neighbours, the smaller of each axis's two differences), as the paper's
+    /// authors' implementation tests against the normal's screen-space width: normal-mapped
+    /// foliage, whose normals change from pixel to pixel, keeps its history, a flat surface
+    /// is tested more tightly than by a cosine of 0.9. 0 keeps a previous pixel whose normal's
+    /// cosine with this one's is at least 0.9 (this filter's first test; not in the paper).
+    pub svgf_normal_width: f32,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
     /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
@@ -198,6 +206,7 @@ impl Default for FilterConfig {
             atrous_iterations: 5,
             atrous_kernel: 5,
             svgf_split: true,
+            svgf_normal_width: 16.0,
             sigma_direct: 1.25,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -267,6 +276,13 @@ impl FilterConfig {
                 return bad(field, &v, "a positive number");
             }
         }
+        if !(self.svgf_normal_width.is_finite() && self.svgf_normal_width >= 0.0) {
+            return bad(
+                "frame.filter.svgf_normal_width",
+                &self.svgf_normal_width,
+                "finite and at least 0",
+            );
+        }
         if !(self.sigma_normal_lobe.is_finite() && self.sigma_normal_lobe >= 0.0) {
             return bad(
                 "frame.filter.sigma_normal_lobe",
@@ -290,6 +306,7 @@ impl FilterConfig {
             iterations: self.atrous_iterations,
             kernel: self.atrous_kernel,
             split: self.svgf_split,
+            normal_width: self.svgf_normal_width,
         }
     }
 
@@ -328,6 +345,8 @@ mod tests {
             ("variance_scale", "[1.0, -1.0, 1.0, 1.0, 1.0]"),
             ("sigma_normal_lobe", "-1.0"),
             ("sigma_normal_lobe", "inf"),
+            ("svgf_normal_width", "-16.0"),
+            ("svgf_normal_width", "nan"),
             ("atrous_iterations", "0"),
             ("atrous_kernel", "4"),
             ("rpf_boxes", "[55, 34]"),

@@ -205,6 +205,13 @@ pub fn max<V: F32xN>(a: V, b: V) -> V {
     V::select(m.ne(m), a, m)
 }
 
+/// `f32::min` in lanes (a NaN lane gives the other one).
+#[inline(always)]
+pub fn min<V: F32xN>(a: V, b: V) -> V {
+    let m = V::select(a.ge(b), b, a);
+    V::select(m.ne(m), b, m)
+}
+
 /// The three channels of `buffer`'s pixels `index` in the lanes where `m` (0 in the others).
 ///
 /// # Safety

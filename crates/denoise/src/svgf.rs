@@ -26,8 +26,14 @@
 //!   + eps))` with the depth gradient from central differences, sigma_z 1; normal
 //!   `max(0, n_p . n_q)^128` (the paper's values).
 //! - Reprojection tests: a previous pixel is kept when its depth is within 10% of this pixel's
-//!   and their normals' cosine is at least 0.9 (the paper compares depth with its gradient and
-//!   mesh ids; there are no mesh ids here).
+//!   (the paper compares depth with its gradient and mesh ids; there are no mesh ids here) and
+//!   the two normals lie within `k (w + 0.01)` of each other, `k` 16, `w` this pixel's normal
+//!   width (`normal_width`): the test of the authors' implementation, whose width is the
+//!   raster's `|(|dn/dx| + |dn/dy|)|`; here each axis takes the smaller of its two one-sided
+//!   differences, so the edge between two flat surfaces has a width of 0 where the raster's is
+//!   wide. Foliage, whose normals change from pixel to pixel, keeps its history; a flat
+//!   surface is tested more tightly than by the first test here, a cosine of at least 0.9
+//!   ([`SvgfParams::normal_width`] 0).
 //! - Blending: `alpha = max(1 / n, 0.2)` for the light and the moments, n the history length
 //!   (capped at 32), as the paper.
 //! - The sky and light sources (`emitter`) pass through with this frame's light and are not
@@ -57,7 +63,7 @@ use crate::atrous::{
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
 use crate::simd::{
-    dispatch, gather3, iota, load_first, luminance_lanes, max, store_first, ByGroups, F32xN,
+    dispatch, gather3, iota, load_first, luminance_lanes, max, min, store_first, ByGroups, F32xN,
     Groups, LANES,
 };
 use crate::{simd, FilterError};
@@ -81,7 +87,7 @@ pub struct SvgfFrame<'a> {
 }
 
 /// The filter's parameters.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SvgfParams {
     /// A-trous passes.
     pub iterations: u32,
@@ -90,6 +96,12 @@ pub struct SvgfParams {
     /// Direct and indirect light integrated and filtered apart (the paper); else their sum as
     /// one signal.
     pub split: bool,
+    /// The reprojection's normal test: `k > 0` (16 by default) keeps a previous pixel whose
+    /// normal lies within `k` times this pixel's normal width ([`normal_width`]) plus 0.01 of
+    /// this one's (the authors' implementation's test, with its `k`, on a width that is 0 on
+    /// the edge between two flat surfaces); 0 keeps a previous pixel whose normal's cosine
+    /// with this one's is at least 0.9.
+    pub normal_width: f32,
 }
 
 impl Default for SvgfParams {
@@ -98,6 +110,7 @@ impl Default for SvgfParams {
             iterations: 5,
             kernel: 5,
             split: true,
+            normal_width: 16.0,
         }
     }
 }
@@ -133,6 +146,9 @@ const MIN_ALPHA: f32 = 0.2;
 const MAX_LENGTH: f32 = 32.0;
 const DEPTH_TOLERANCE: f32 = 0.1;
 const NORMAL_COSINE: f32 = 0.9;
+/// Added to the normal width in the reprojection's normal test (the authors' implementation's
+/// value): a flat surface keeps normals within `0.01 k`.
+const NORMAL_WIDTH_FLOOR: f32 = 0.01;
 
 impl Svgf {
     pub fn new() -> Self {
@@ -169,6 +185,7 @@ impl Svgf {
             iterations,
             kernel,
             split,
+            normal_width,
         } = *p;
         let n = f.width * f.height;
         for (name, len) in [
@@ -220,6 +237,7 @@ impl Svgf {
                     f,
                     previous,
                     split,
+                    normal_width,
                     y,
                     row,
                     next,
@@ -251,7 +269,9 @@ impl Svgf {
             (&mut self.light, &mut self.next)
                 .into_par_iter()
                 .enumerate()
-                .for_each(|(i, (light, s))| (*light, *s) = integrate(f, previous, split, i));
+                .for_each(|(i, (light, s))| {
+                    (*light, *s) = integrate(f, previous, split, normal_width, i)
+                });
             self.spatial_variance(f);
             self.depth_gradient(f);
             for i in 0..iterations {
@@ -436,8 +456,14 @@ fn variance(m: [f32; 4]) -> [f32; 2] {
 /// Temporal accumulation at pixel `i`: this frame's demodulated light (direct and indirect
 /// apart if `split`, else their sum) blended with last frame's history (`previous`) at the
 /// reprojected position; the integrated light and the pixel's state (its light left for the
-/// first a-trous pass to fill in).
-fn integrate(f: &SvgfFrame, previous: &[State], split: bool, i: usize) -> ([Vec3; 2], State) {
+/// first a-trous pass to fill in). `normal_width`: [`SvgfParams::normal_width`].
+fn integrate(
+    f: &SvgfFrame,
+    previous: &[State],
+    split: bool,
+    normal_width: f32,
+    i: usize,
+) -> ([Vec3; 2], State) {
     let (w, h) = (f.width, f.height);
     let a = demodulator(f.albedo[i]);
     let current = if split {
@@ -459,6 +485,13 @@ fn integrate(f: &SvgfFrame, previous: &[State], split: bool, i: usize) -> ([Vec3
         let light = if finite { current } else { [Vec3::ZERO; 2] };
         return (light, state(now, 0.0));
     }
+    // The normal test's largest squared distance (with `normal_width`).
+    let reach = if normal_width > 0.0 {
+        let reach = normal_width * (self::normal_width(f, i) + NORMAL_WIDTH_FLOOR);
+        reach * reach
+    } else {
+        0.0
+    };
     // Reverse reprojection: bilinear taps of the previous frame around p + motion.
     let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
     let prev = Vec2::new(x, y) + f.motion[i] - Vec2::splat(0.5);
@@ -480,11 +513,16 @@ fn integrate(f: &SvgfFrame, previous: &[State], split: bool, i: usize) -> ([Vec3
             continue;
         }
         let p = &previous[qy as usize * w + qx as usize];
+        // (A NaN normal agrees with none.)
+        let normal_agrees = if normal_width > 0.0 {
+            (p.normal - f.normal[i]).length_squared() <= reach
+        } else {
+            p.normal.dot(f.normal[i]) >= NORMAL_COSINE
+        };
         if p.length <= 0.0
             || !p.depth.is_finite()
             || (p.depth - f.depth[i]).abs() > DEPTH_TOLERANCE * f.depth[i]
-            || p.normal.dot(f.normal[i]).is_nan()
-            || p.normal.dot(f.normal[i]) < NORMAL_COSINE
+            || !normal_agrees
         {
             continue;
         }
@@ -520,6 +558,7 @@ struct Temporal<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     previous: &'a [State],
     split: bool,
+    normal_width: f32,
     y: usize,
     row: LightRow<'a>,
     next: &'a mut [State],
@@ -598,6 +637,14 @@ impl Groups for Temporal<'_, '_> {
         let reprojects = V::and(live, finite);
         let signals = if self.split { 2 } else { 1 };
         let base = self.previous.as_ptr().cast::<f32>();
+        // The normal test's largest squared distance (with `normal_width`).
+        let reach = if self.normal_width > 0.0 {
+            let width = normal_width_lanes(f, x0, self.y, normal, valid);
+            let reach = splat(self.normal_width) * (width + splat(NORMAL_WIDTH_FLOOR));
+            reach * reach
+        } else {
+            zero
+        };
         let mut sum_w = zero;
         let mut old = [[zero; 3]; 2];
         let mut old_m = [zero; 4];
@@ -620,20 +667,28 @@ impl Groups for Temporal<'_, '_> {
             let q = qy * splat(w as f32) + qx;
             // SAFETY (every `field` below): the lanes where `inside` (and so `keep`) index
             // pixels of the previous frame, which has as many as this one.
-            let (length, pdepth, dot) = unsafe {
+            let (length, pdepth, pnormal) = unsafe {
                 (
                     field(base, LENGTH, q, inside),
                     field(base, DEPTH, q, inside),
-                    field(base, NORMAL, q, inside) * normal[0]
-                        + field(base, NORMAL + 1, q, inside) * normal[1]
-                        + field(base, NORMAL + 2, q, inside) * normal[2],
+                    [
+                        field(base, NORMAL, q, inside),
+                        field(base, NORMAL + 1, q, inside),
+                        field(base, NORMAL + 2, q, inside),
+                    ],
                 )
+            };
+            let normal_agrees = if self.normal_width > 0.0 {
+                reach.ge(distance2(pnormal, normal))
+            } else {
+                let dot = pnormal[0] * normal[0] + pnormal[1] * normal[1] + pnormal[2] * normal[2];
+                dot.ge(splat(NORMAL_COSINE))
             };
             let keep = V::and(
                 V::and(V::and(inside, length.gt(zero)), simd::finite(pdepth)),
                 V::and(
                     (splat(DEPTH_TOLERANCE) * depth).ge((pdepth - depth).abs()),
-                    dot.ge(splat(NORMAL_COSINE)),
+                    normal_agrees,
                 ),
             );
             let bw = V::select(keep, bw, zero);
@@ -889,6 +944,71 @@ fn depth_gradient(f: &SvgfFrame, i: usize) -> f32 {
     } else {
         0.0
     }
+}
+
+/// Pixel `i`'s normal width for the reprojection's normal test: `sqrt(min(|n - n_l|^2, |n -
+/// n_r|^2) + min(|n - n_u|^2, |n - n_d|^2))` over its four neighbours (the image's border
+/// clamped; 0 where not finite). The smaller of each axis's one-sided differences: a pixel
+/// on the edge between two flat surfaces has a neighbour on its own surface along both axes
+/// and a width of 0 (its history is tested as tightly as a flat surface's), where the
+/// normals change from pixel to pixel (foliage) the width is theirs. (The authors'
+/// implementation takes `|(|dn/dx| + |dn/dy|)|` from the raster's derivatives, which is wide
+/// on every edge: along a faster orbit of the Cornell box it took history across the walls'
+/// corners.)
+fn normal_width(f: &SvgfFrame, i: usize) -> f32 {
+    let (w, h) = (f.width, f.height);
+    let (x, y) = (i % w, i / w);
+    let c = f.normal[i];
+    let d = |x: usize, y: usize| (f.normal[y * w + x] - c).length_squared();
+    let dx = d((x + 1).min(w - 1), y).min(d(x.saturating_sub(1), y));
+    let dy = d(x, (y + 1).min(h - 1)).min(d(x, y.saturating_sub(1)));
+    let width = (dx + dy).sqrt();
+    if width.is_finite() {
+        width
+    } else {
+        0.0
+    }
+}
+
+/// [`normal_width`] of the pixels of row `y` from `x0` on, whose normals are `normal`, in
+/// lanes (the lanes where `valid`).
+#[inline(always)]
+fn normal_width_lanes<V: F32xN>(
+    f: &SvgfFrame,
+    x0: usize,
+    y: usize,
+    normal: [V; 3],
+    valid: V::Mask,
+) -> V {
+    let (w, h) = (f.width, f.height);
+    let splat = V::splat;
+    let (zero, one) = (splat(0.0), splat(1.0));
+    let x = splat(x0 as f32) + iota::<V>();
+    let last = splat((w - 1) as f32);
+    let right = V::select(x.ge(last), last, x + one);
+    let left = V::select(one.gt(x), zero, x - one);
+    let at = splat((y * w) as f32);
+    let up = splat(((y + 1).min(h - 1) * w) as f32);
+    let down = splat((y.saturating_sub(1) * w) as f32);
+    // SAFETY: the lanes where `valid` index pixels of the image (the columns clamped to it,
+    // the rows too).
+    let (r, l, u, dn) = unsafe {
+        (
+            distance2(gather3(f.normal, at + right, valid), normal),
+            distance2(gather3(f.normal, at + left, valid), normal),
+            distance2(gather3(f.normal, up + x, valid), normal),
+            distance2(gather3(f.normal, down + x, valid), normal),
+        )
+    };
+    let width = (min(r, l) + min(u, dn)).sqrt();
+    V::select(simd::finite(width), width, zero)
+}
+
+/// `|a - b|^2` in lanes.
+#[inline(always)]
+fn distance2<V: F32xN>(a: [V; 3], b: [V; 3]) -> V {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
 /// The number of signals the passes filter.

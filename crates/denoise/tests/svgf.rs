@@ -218,6 +218,70 @@ fn history_is_dropped_where_the_surface_changed() {
 }
 
 #[test]
+fn the_normal_width_test_keeps_bumpy_history_and_drops_a_turned_wall() {
+    // A still wall with fresh noise every frame whose normals change from pixel to pixel and
+    // frame to frame (a normal-mapped leaf sampled at a new point of the pixel each frame):
+    // the cosine test (at least 0.9) refuses much of its history, the width test keeps it, so
+    // its output flickers less.
+    let bumpy = |k: u64| {
+        let mut f = noisy(k);
+        let mut rng = Rng::new(0xb0b + k, 1);
+        for n in &mut f.normal {
+            let (u, v) = (2.0 * rng.next_f32() - 1.0, 2.0 * rng.next_f32() - 1.0);
+            *n = (Vec3::Z + 0.5 * Vec3::new(u, v, 0.0)).normalize();
+        }
+        f
+    };
+    let flicker = |normal_width: f32| {
+        let p = SvgfParams {
+            kernel: 3,
+            normal_width,
+            ..SvgfParams::default()
+        };
+        let mut svgf = Svgf::new();
+        let out: Vec<Vec<Vec3>> = (0..30)
+            .map(|k| bumpy(k).run_params(&mut svgf, &p))
+            .collect();
+        (20..30)
+            .map(|k| mean_abs_diff(&out[k], &out[k - 1]))
+            .sum::<f32>()
+            / 10.0
+    };
+    let (cosine, width) = (flicker(0.0), flicker(16.0));
+    assert!(width < 0.5 * cosine, "flicker {width} against {cosine}");
+    // A flat wall that turns (the same depth, another normal): its normal width is 0, so its
+    // history goes (the normals 1.4 apart, the test's reach 0.16), as with the cosine test.
+    // (The left half turns, the right half stays.)
+    for normal_width in [0.0, 16.0] {
+        let p = SvgfParams {
+            normal_width,
+            ..SvgfParams::default()
+        };
+        let mut svgf = Svgf::new();
+        let old = Frame::flat(40, 20, 0.2);
+        for _ in 0..10 {
+            old.run_params(&mut svgf, &p);
+        }
+        let mut new = old.clone();
+        for y in 0..20 {
+            for x in 0..20 {
+                let i = y * 40 + x;
+                new.normal[i] = Vec3::X;
+                new.direct[i] = Vec3::splat(0.8);
+                new.indirect[i] = Vec3::splat(0.08);
+            }
+        }
+        let out = new.run_params(&mut svgf, &p);
+        assert_red(&out, 10 * 40 + 5, 0.88);
+        assert_red(&out, 10 * 40 + 35, 0.22);
+        // Nor on either side of the edge between the turned half and the other, whose normal
+        // width is 0 too (each of them has a neighbour on its own surface along both axes).
+        assert_red(&out, 10 * 40 + 19, 0.88);
+        assert_red(&out, 10 * 40 + 20, 0.22);
+    }
+}
+
+#[test]
 fn motion_vectors_carry_the_history() {
     // A step in the light (a shadow edge on one wall) that moves right by 2 pixels a frame,
     // with motion vectors saying so: the output follows the step without trailing it.
@@ -344,6 +408,10 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
                 };
                 f.normal[i] = if y > 2 * h / 3 {
                     Vec3::new(0.0, 0.6, 0.8)
+                } else if x > w / 4 && x <= w / 2 && y < h / 3 {
+                    // Bumpy (for the normal width test).
+                    let (u, v) = (rng.next_f32() - 0.5, rng.next_f32() - 0.5);
+                    (Vec3::Z + Vec3::new(u, v, 0.0)).normalize()
                 } else {
                     Vec3::Z
                 };
@@ -370,24 +438,26 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
         }
         f
     };
-    for (iterations, kernel, split) in [
-        (1, 5, true),
-        (2, 5, true),
-        (3, 5, true),
-        (5, 5, true),
-        (6, 5, true),
-        (7, 5, true),
-        (1, 3, true),
-        (5, 3, true),
-        (1, 3, false),
-        (5, 3, false),
-        (5, 5, false),
-        (7, 5, false),
+    for (iterations, kernel, split, normal_width) in [
+        (1, 5, true, 0.0),
+        (2, 5, true, 0.0),
+        (3, 5, true, 16.0),
+        (5, 5, true, 0.0),
+        (6, 5, true, 0.0),
+        (7, 5, true, 0.0),
+        (1, 3, true, 0.0),
+        (5, 3, true, 0.0),
+        (4, 3, true, 16.0),
+        (1, 3, false, 0.0),
+        (5, 3, false, 4.0),
+        (5, 5, false, 0.0),
+        (7, 5, false, 0.0),
     ] {
         let p = SvgfParams {
             iterations,
             kernel,
             split,
+            normal_width,
         };
         let (mut fast, mut slow) = (Svgf::new(), Svgf::new());
         slow.set_scalar(true);
@@ -414,7 +484,7 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
                 let tolerance = 1e-4 * (1.0 + q.abs().max_element());
                 assert!(
                     (*p - *q).abs().max_element() <= tolerance,
-                    "{iterations} passes of {kernel}x{kernel} (split {split}), frame {k}, pixel ({}, {}): {p} against {q}",
+                    "{iterations} passes of {kernel}x{kernel} (split {split}, normal width {normal_width}), frame {k}, pixel ({}, {}): {p} against {q}",
                     i % w,
                     i / w
                 );

@@ -494,6 +494,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         atrous_kernel: 3,
         sigma_normal_lobe: 2.0,
         sky_coverage: false,
+        svgf_normal_width: 4.0,
         ..Default::default()
     };
     let run = |cfg: &Config| {

@@ -396,6 +396,11 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             &mut f.svgf_split,
             "direct and indirect light apart (the paper; off: their sum, one signal)",
         );
+        ui.add(
+            egui::Slider::new(&mut f.svgf_normal_width, 0.0..=32.0).text(
+                "history's normal test: times the normal width (0: cosine 0.9; 16: the authors')",
+            ),
+        );
     });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;
