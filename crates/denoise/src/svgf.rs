@@ -789,23 +789,16 @@ impl Groups for Features<'_, '_> {
         let (zero, one) = (splat(0.0), splat(1.0));
         let lane = iota::<V>();
         let valid = splat(n as f32).gt(lane);
-        let x = splat(x0 as f32) + lane;
-        let last = splat((w - 1) as f32);
-        let right = V::select(x.ge(last), last, x + one);
-        let left = V::select(one.gt(x), zero, x - one);
-        let at = splat((y * w) as f32);
-        let up = splat(((y + 1).min(h - 1) * w) as f32);
-        let down = splat((y.saturating_sub(1) * w) as f32);
+        let [centre, right, left, up, down] = cross(w, h, x0, y);
         let base = f.depth.as_ptr();
-        // SAFETY: the lanes where `valid` index pixels of the image (the columns clamped to
-        // it, the rows too).
+        // SAFETY: the lanes where `valid` index pixels of the image (`cross`).
         let (depth, r, l, u, d) = unsafe {
             (
-                V::gather(base, at + x, 1, valid),
-                V::gather(base, at + right, 1, valid),
-                V::gather(base, at + left, 1, valid),
-                V::gather(base, up + x, 1, valid),
-                V::gather(base, down + x, 1, valid),
+                V::gather(base, centre, 1, valid),
+                V::gather(base, right, 1, valid),
+                V::gather(base, left, 1, valid),
+                V::gather(base, up, 1, valid),
+                V::gather(base, down, 1, valid),
             )
         };
         let (dx, dy) = ((r - l) * splat(0.5), (u - d) * splat(0.5));
@@ -813,7 +806,7 @@ impl Groups for Features<'_, '_> {
         let gz = V::select(simd::finite(gz), gz, zero);
         let live = live_lanes(f, y * w + x0, n, depth);
         // SAFETY: the lanes where `valid` index this row's pixels.
-        let normal = unsafe { gather3(f.normal, at + x, valid) };
+        let normal = unsafe { gather3(f.normal, centre, valid) };
         store_first(depth, n, &mut self.row.depth()[x0..]);
         store_first(gz, n, &mut self.row.gradient()[x0..]);
         store_first(V::select(live, zero, one), n, &mut self.row.through()[x0..]);
@@ -980,7 +973,26 @@ fn normal_width_lanes<V: F32xN>(
     normal: [V; 3],
     valid: V::Mask,
 ) -> V {
-    let (w, h) = (f.width, f.height);
+    let [_, right, left, up, down] = cross(f.width, f.height, x0, y);
+    // SAFETY: the lanes where `valid` index pixels of the image (`cross`).
+    let (r, l, u, d) = unsafe {
+        (
+            distance2(gather3(f.normal, right, valid), normal),
+            distance2(gather3(f.normal, left, valid), normal),
+            distance2(gather3(f.normal, up, valid), normal),
+            distance2(gather3(f.normal, down, valid), normal),
+        )
+    };
+    let width = (min(r, l) + min(u, d)).sqrt();
+    V::select(simd::finite(width), width, V::splat(0.0))
+}
+
+/// The indices of the pixels of row `y` of a `w x h` image from `x0` on and of their
+/// neighbours, in lanes: `[centre, right, left, up, down]` (`up` the next row, `down` the
+/// previous one), the neighbours clamped to the image: the lanes whose column is in the image
+/// index its pixels.
+#[inline(always)]
+fn cross<V: F32xN>(w: usize, h: usize, x0: usize, y: usize) -> [V; 5] {
     let splat = V::splat;
     let (zero, one) = (splat(0.0), splat(1.0));
     let x = splat(x0 as f32) + iota::<V>();
@@ -990,18 +1002,7 @@ fn normal_width_lanes<V: F32xN>(
     let at = splat((y * w) as f32);
     let up = splat(((y + 1).min(h - 1) * w) as f32);
     let down = splat((y.saturating_sub(1) * w) as f32);
-    // SAFETY: the lanes where `valid` index pixels of the image (the columns clamped to it,
-    // the rows too).
-    let (r, l, u, dn) = unsafe {
-        (
-            distance2(gather3(f.normal, at + right, valid), normal),
-            distance2(gather3(f.normal, at + left, valid), normal),
-            distance2(gather3(f.normal, up + x, valid), normal),
-            distance2(gather3(f.normal, down + x, valid), normal),
-        )
-    };
-    let width = (min(r, l) + min(u, dn)).sqrt();
-    V::select(simd::finite(width), width, zero)
+    [at + x, at + right, at + left, up + x, down + x]
 }
 
 /// `|a - b|^2` in lanes.
