@@ -396,11 +396,11 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             &mut f.svgf_split,
             "direct and indirect light apart (the paper; off: their sum, one signal)",
         );
-        ui.add(
-            egui::Slider::new(&mut f.svgf_normal_width, 0.0..=32.0).text(
-                "history's normal test: times the normal width (0: cosine 0.9; 16: the authors')",
-            ),
-        );
+        ui.add(egui::Slider::new(&mut f.svgf_normal_width, 0.0..=32.0).text("history normal test"))
+            .on_hover_text(
+                "A previous normal is kept within k times the pixel's normal width plus 0.01 \
+                 (16: the authors' implementation); 0: a cosine of at least 0.9",
+            );
     });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;
