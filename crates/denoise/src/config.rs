@@ -139,6 +139,11 @@ pub struct FilterConfig {
     /// is tested more tightly than by a cosine of 0.9. 0 keeps a previous pixel whose normal's
     /// cosine with this one's is at least 0.9 (this filter's first test; not in the paper).
     pub svgf_normal_width: f32,
+    /// SVGF: temporal antialiasing of the output (the paper applies it after the filter;
+    /// [`crate::taa`]): each pixel blended with its reprojected previous output (weight 0.7),
+    /// clamped to this frame's 3x3 neighbourhood's mean plus and minus half a standard
+    /// deviation (in YCoCg of light compressed by its luminance).
+    pub svgf_taa: bool,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
     /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
@@ -207,6 +212,7 @@ impl Default for FilterConfig {
             atrous_kernel: 5,
             svgf_split: true,
             svgf_normal_width: 16.0,
+            svgf_taa: false,
             sigma_direct: 1.25,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -307,6 +313,7 @@ impl FilterConfig {
             kernel: self.atrous_kernel,
             split: self.svgf_split,
             normal_width: self.svgf_normal_width,
+            taa: self.svgf_taa,
         }
     }
 

@@ -4,7 +4,8 @@
 //!
 //! - [`data_driven`]: the thesis's data-driven filter, a cross-bilateral filter guided by the
 //!   features, with direct and indirect light filtered apart (thesis Eqs. 6.8-6.21).
-//! - [`svgf`]: a spatio-temporal variance-guided filter in the manner of SVGF.
+//! - [`svgf`]: a spatio-temporal variance-guided filter in the manner of SVGF, and [`taa`],
+//!   the temporal antialiasing its paper applies after it.
 //! - [`rpf`]: Random Parameter Filtering, the offline baseline (every sample filtered apart).
 //!
 //! One settings type, [`FilterConfig`] (`[frame.filter]` of pathlight's `Config`), chooses the
@@ -19,6 +20,7 @@ mod neighbourhood;
 pub mod rpf;
 mod simd;
 pub mod svgf;
+pub mod taa;
 
 pub use config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig, Method};
 pub use data_driven::DataDriven;

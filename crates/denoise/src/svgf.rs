@@ -15,6 +15,8 @@
 //!                                                    the first one's output is the next
 //!                                                    frame's history, as in the paper)
 //! remodulate filtered light, albedo                -> image
+//! taa       image, motion, last image              -> image (with `taa`: [`crate::taa`], the
+//!                                                    paper's last stage, not the filter's)
 //! ```
 //!
 //! Direct and indirect light are integrated and filtered apart (two signals, each with its
@@ -66,6 +68,7 @@ use crate::simd::{
     dispatch, gather3, iota, load_first, luminance_lanes, max, min, store_first, ByGroups, F32xN,
     Groups, LANES,
 };
+use crate::taa::Taa;
 use crate::{simd, FilterError};
 
 /// One frame's inputs, per pixel in row-major order.
@@ -102,6 +105,9 @@ pub struct SvgfParams {
     /// the edge between two flat surfaces); 0 keeps a previous pixel whose normal's cosine
     /// with this one's is at least 0.9.
     pub normal_width: f32,
+    /// Temporal antialiasing of the output ([`crate::taa`]), as the paper applies after the
+    /// filter.
+    pub taa: bool,
 }
 
 impl Default for SvgfParams {
@@ -111,6 +117,7 @@ impl Default for SvgfParams {
             kernel: 5,
             split: true,
             normal_width: 16.0,
+            taa: false,
         }
     }
 }
@@ -136,6 +143,8 @@ pub struct Svgf {
     luminance: Vec<[f32; 2]>,
     /// The vectorised a-trous passes' planes.
     planes: Planes,
+    /// The output's temporal antialiasing (with [`SvgfParams::taa`]).
+    taa: Taa,
     /// Run the scalar a-trous passes (the reference the vectorised ones are tested against).
     scalar: bool,
 }
@@ -172,6 +181,7 @@ impl Svgf {
     /// Forgets the history (a cut: the next frame starts afresh).
     pub fn reset(&mut self) {
         self.state.clear();
+        self.taa.reset();
     }
 
     /// Filters `frame` into `out` with the passes `p` gives, using and updating the history.
@@ -186,6 +196,7 @@ impl Svgf {
             kernel,
             split,
             normal_width,
+            taa,
         } = *p;
         let n = f.width * f.height;
         for (name, len) in [
@@ -288,6 +299,11 @@ impl Svgf {
             out.par_iter_mut()
                 .enumerate()
                 .for_each(|(i, o)| *o = remodulate(f, i, self.light[i][0] + self.light[i][1]));
+        }
+        if taa {
+            self.taa.apply(out, f.motion, f.width, f.height);
+        } else {
+            self.taa.reset();
         }
         std::mem::swap(&mut self.state, &mut self.next);
         Ok(())

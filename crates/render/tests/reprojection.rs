@@ -495,6 +495,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         sigma_normal_lobe: 2.0,
         sky_coverage: false,
         svgf_normal_width: 4.0,
+        svgf_taa: true,
         ..Default::default()
     };
     let run = |cfg: &Config| {

@@ -401,6 +401,7 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 "A previous normal is kept within k times the pixel's normal width plus 0.01 \
                  (16: the authors' implementation); 0: a cosine of at least 0.9",
             );
+        ui.checkbox(&mut f.svgf_taa, "temporal antialiasing after it");
     });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;

@@ -1,0 +1,331 @@
+//! Temporal antialiasing of a filtered image, the last stage of SVGF's pipeline (the paper
+//! applies it after remodulation; it is not part of the filter itself): each pixel's output
+//! is blended with the previous output at the place its surface was (`motion`), the previous
+//! value first clamped to the box of this frame's 3x3 neighbourhood (its mean plus and minus
+//! half a standard deviation in YCoCg, "variance clipping"), so a disocclusion or a change of
+//! light takes the new value instead of trailing the old one. The box and the blend are in
+//! light compressed by its luminance (`c / (1 + Y)`, as real-time renderers' TAA does with
+//! HDR input), so a light source's radiance is not smeared over its neighbours (in linear
+//! light the Cornell box's relMSE along its orbit rose 19x).
+//!
+//! ```text
+//! image, motion, last output -> image blended with its clamped history (alpha 0.3)
+//! ```
+//!
+//! At one sample per pixel the frame's albedo and geometry are one point of the pixel, which
+//! moves with the pixel's jitter: the blend averages those points over frames (antialiasing,
+//! and a texture that no longer flickers), which remodulating with one frame's albedo cannot.
+//! Choices: bilinear taps of the history (the paper's implementations use bilinear or
+//! bicubic), the box at `gamma` 0.5 and `alpha` 0.3 (chosen on two orbits; a common TAA takes
+//! 1 and 0.1, which blur more behind a moving camera: FLIP rose 10%); a pixel whose every tap
+//! falls outside the image, or whose motion is not finite, takes this frame's value.
+
+use glam::{Vec2, Vec3};
+use pathlight_core::color::luminance;
+use rayon::prelude::*;
+
+/// The weight of this frame's value in the blend (chosen on the orbits of the Cornell box and
+/// the garden among 0.1, 0.2 and 0.3, BENCHMARKS.md).
+const ALPHA: f32 = 0.3;
+/// The history is clamped to the neighbourhood's mean plus and minus `GAMMA` standard
+/// deviations (chosen among 0.35, 0.5, 0.75 and 1).
+const GAMMA: f32 = 0.5;
+
+/// The last output, kept across frames, and scratch.
+#[derive(Default)]
+pub struct Taa {
+    width: usize,
+    height: usize,
+    /// Last frame's output (empty: none).
+    history: Vec<Vec3>,
+    /// This frame's.
+    next: Vec<Vec3>,
+    /// This frame's pixels compressed and in YCoCg, and 1 (0 for a pixel that is not finite:
+    /// its four values are 0).
+    ycocg: Vec<[f32; 4]>,
+    /// Their sums along each row's 3 pixels: the values, their squares and the count.
+    rows: Vec<[f32; 7]>,
+}
+
+impl Taa {
+    /// Forgets the history (the next frame is kept as it is).
+    pub fn reset(&mut self) {
+        self.history.clear();
+    }
+
+    /// Blends `image` (`width x height`, row-major) with the history through `motion` (where
+    /// each pixel's surface was on the previous frame minus where it is, in pixels), then
+    /// keeps the result as the next frame's history.
+    pub fn apply(&mut self, image: &mut [Vec3], motion: &[Vec2], width: usize, height: usize) {
+        let n = width * height;
+        debug_assert!(image.len() == n && motion.len() == n);
+        if (self.width, self.height) != (width, height) || self.history.len() != n {
+            (self.width, self.height) = (width, height);
+            self.history.clear();
+            self.history.extend_from_slice(image);
+            return;
+        }
+        self.next.resize(n, Vec3::ZERO);
+        self.ycocg.resize(n, [0.0; 4]);
+        self.rows.resize(n, [0.0; 7]);
+        (&mut self.ycocg, &*image)
+            .into_par_iter()
+            .for_each(|(q, c)| {
+                let y = ycocg(compress(*c));
+                *q = if y.is_finite() {
+                    [y.x, y.y, y.z, 1.0]
+                } else {
+                    [0.0; 4]
+                };
+            });
+        let values = &self.ycocg;
+        self.rows
+            .par_chunks_mut(width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let values = &values[y * width..(y + 1) * width];
+                for (x, sums) in row.iter_mut().enumerate() {
+                    // Three taps, the border's outside one weighing 0 (a fixed form that the
+                    // compiler keeps in registers).
+                    let (l, r) = (x.saturating_sub(1), (x + 1).min(width - 1));
+                    let (wl, wr) = (
+                        f32::from(u8::from(x > 0)),
+                        f32::from(u8::from(x + 1 < width)),
+                    );
+                    let (a, c, b) = (values[l], values[x], values[r]);
+                    let mut acc = [0.0f32; 7];
+                    for k in 0..3 {
+                        acc[k] = a[k] * wl + c[k] + b[k] * wr;
+                        acc[3 + k] = a[k] * a[k] * wl + c[k] * c[k] + b[k] * b[k] * wr;
+                    }
+                    acc[6] = a[3] * wl + c[3] + b[3] * wr;
+                    *sums = acc;
+                }
+            });
+        let (history, current, rows) = (&self.history, &*image, &self.rows);
+        self.next
+            .par_chunks_mut(width)
+            .enumerate()
+            .for_each(|(y, out)| {
+                for (x, out) in out.iter_mut().enumerate() {
+                    let i = y * width + x;
+                    let mut sums = [0.0f32; 7];
+                    for qy in y.saturating_sub(1)..(y + 2).min(height) {
+                        for (s, r) in sums.iter_mut().zip(&rows[qy * width + x]) {
+                            *s += r;
+                        }
+                    }
+                    let size = (width, height);
+                    *out = pixel(current[i], &sums, history, motion[i], size, (x, y));
+                }
+            });
+        image.copy_from_slice(&self.next);
+        std::mem::swap(&mut self.history, &mut self.next);
+    }
+}
+
+/// The output of pixel `at` of an image of `size`, whose value is `c` and whose 3x3 neighbourhood's sums are
+/// `sums` (the values compressed and in YCoCg, their squares, the count).
+fn pixel(
+    c: Vec3,
+    sums: &[f32; 7],
+    history: &[Vec3],
+    motion: Vec2,
+    size: (usize, usize),
+    at: (usize, usize),
+) -> Vec3 {
+    if !c.is_finite() {
+        return c;
+    }
+    let Some(h) = reproject(history, motion, size.0, size.1, at.0, at.1) else {
+        return c;
+    };
+    // The neighbourhood's box (its finite values: the centre's at least).
+    let inv = 1.0 / sums[6];
+    let mean = Vec3::new(sums[0], sums[1], sums[2]) * inv;
+    let square = Vec3::new(sums[3], sums[4], sums[5]) * inv;
+    let sigma = (square - mean * mean).max(Vec3::ZERO).sqrt();
+    let c = ycocg(compress(c));
+    // The box stretched to hold this frame's value (a pixel beside an edge is not pulled
+    // towards its neighbourhood's mean).
+    let (low, high) = (mean - GAMMA * sigma, mean + GAMMA * sigma);
+    let clamped = ycocg(compress(h)).clamp(low.min(c), high.max(c));
+    // (A box's corner in YCoCg may lie a little outside the RGB cube.)
+    expand(rgb(clamped + (c - clamped) * ALPHA).max(Vec3::ZERO))
+}
+
+/// Light compressed into [0, 1) by its luminance, `c / (1 + Y)`, in which the box and the
+/// blend are worked out: a bright pixel (a light source, a firefly) then weighs as much as a
+/// white one, not its radiance's worth, and is not smeared over its neighbours.
+fn compress(c: Vec3) -> Vec3 {
+    c * (1.0 / (1.0 + luminance(c).max(0.0)))
+}
+
+/// The inverse of [`compress`].
+fn expand(c: Vec3) -> Vec3 {
+    c * (1.0 / (1.0 - luminance(c).clamp(0.0, 0.999)))
+}
+
+/// The history's bilinear value at pixel `(x, y)`'s previous place, `None` where no tap lies
+/// in the image (or the motion or the history there is not finite).
+fn reproject(
+    history: &[Vec3],
+    motion: Vec2,
+    width: usize,
+    height: usize,
+    x: usize,
+    y: usize,
+) -> Option<Vec3> {
+    let p = Vec2::new(x as f32, y as f32) + motion;
+    if !p.is_finite() {
+        return None;
+    }
+    let (x0, y0) = (p.x.floor(), p.y.floor());
+    let (fx, fy) = (p.x - x0, p.y - y0);
+    let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+    for (dx, dy, w) in [
+        (0.0, 0.0, (1.0 - fx) * (1.0 - fy)),
+        (1.0, 0.0, fx * (1.0 - fy)),
+        (0.0, 1.0, (1.0 - fx) * fy),
+        (1.0, 1.0, fx * fy),
+    ] {
+        let (qx, qy) = (x0 + dx, y0 + dy);
+        if w <= 0.0 || qx < 0.0 || qy < 0.0 || qx >= width as f32 || qy >= height as f32 {
+            continue;
+        }
+        let h = history[qy as usize * width + qx as usize];
+        if h.is_finite() {
+            sum += h * w;
+            weight += w;
+        }
+    }
+    (weight >= 1e-3).then(|| sum * (1.0 / weight))
+}
+
+fn ycocg(c: Vec3) -> Vec3 {
+    Vec3::new(
+        0.25 * c.x + 0.5 * c.y + 0.25 * c.z,
+        0.5 * c.x - 0.5 * c.z,
+        -0.25 * c.x + 0.5 * c.y - 0.25 * c.z,
+    )
+}
+
+fn rgb(c: Vec3) -> Vec3 {
+    Vec3::new(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pathlight_core::rng::Rng;
+
+    const W: usize = 24;
+    const H: usize = 16;
+
+    fn run(taa: &mut Taa, image: &[Vec3], motion: Vec2) -> Vec<Vec3> {
+        let mut out = image.to_vec();
+        taa.apply(&mut out, &vec![motion; W * H], W, H);
+        out
+    }
+
+    #[test]
+    fn a_constant_image_stays_constant_and_a_change_is_taken_at_once() {
+        let mut taa = Taa::default();
+        for _ in 0..5 {
+            for o in run(&mut taa, &[Vec3::splat(0.2); W * H], Vec2::ZERO) {
+                assert!((o - Vec3::splat(0.2)).abs().max_element() < 1e-6, "{o}");
+            }
+        }
+        // The whole image changes: the box is the new value alone (to the rounding of its
+        // variance), so no ghost of the old.
+        for o in run(&mut taa, &[Vec3::new(0.8, 0.4, 0.1); W * H], Vec2::ZERO) {
+            assert!(
+                (o - Vec3::new(0.8, 0.4, 0.1)).abs().max_element() < 1e-3,
+                "{o}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_point_sampled_edge_settles_at_its_coverage() {
+        // An edge through column 12 that each frame's sample sees at a random place of the
+        // pixel (a jittered sample): column 12 is 0.2 or 0.1 at random, half the time each (dim
+        // enough that the compression hardly weighs). Its output settles near the pixel's
+        // mean and flickers less than its input.
+        let mut taa = Taa::default();
+        let mut rng = Rng::new(7, 0);
+        let (mut outs, mut ins) = (Vec::new(), Vec::new());
+        for _ in 0..60 {
+            let hit = rng.next_f32() < 0.5;
+            let image: Vec<Vec3> = (0..W * H)
+                .map(|i| match i % W {
+                    x if x < 12 => Vec3::splat(0.2),
+                    12 if hit => Vec3::splat(0.2),
+                    _ => Vec3::splat(0.1),
+                })
+                .collect();
+            ins.push(image[8 * W + 12].x);
+            outs.push(run(&mut taa, &image, Vec2::ZERO)[8 * W + 12].x);
+        }
+        // (This seed's draws hit 20 times in 60: the input's own mean is the coverage seen.)
+        let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+        let (mi, mo) = (mean(&ins[20..]), mean(&outs[20..]));
+        assert!((mo - mi).abs() < 0.01, "{mo} against {mi}");
+        let flicker = |v: &[f32]| v.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>();
+        let (fi, fo) = (flicker(&ins[20..]), flicker(&outs[20..]));
+        assert!(fo < 0.5 * fi, "flicker {fo} against {fi}");
+    }
+
+    #[test]
+    fn motion_vectors_carry_the_history_and_the_border_takes_the_frame() {
+        // A step moving right by 2 pixels a frame, the motion vectors saying so: the output
+        // follows it without trailing; the columns that entered the image take the frame's.
+        let mut taa = Taa::default();
+        let mut out = Vec::new();
+        for k in 0..8 {
+            let image: Vec<Vec3> = (0..W * H)
+                .map(|i| Vec3::splat(if i % W >= 4 + 2 * k { 0.8 } else { 0.2 }))
+                .collect();
+            out = run(&mut taa, &image, Vec2::new(-2.0, 0.0));
+        }
+        // At frame 7 the step is at x = 18.
+        for (x, expected) in [(0, 0.2), (15, 0.2), (17, 0.2), (18, 0.8), (21, 0.8)] {
+            let v = out[5 * W + x].x;
+            assert!((v - expected).abs() < 0.02, "x {x}: {v}");
+        }
+    }
+
+    #[test]
+    fn a_nan_pixel_or_motion_does_not_spread() {
+        let mut taa = Taa::default();
+        let mut image = vec![Vec3::splat(0.5); W * H];
+        run(&mut taa, &image, Vec2::ZERO);
+        image[3 * W + 3] = Vec3::NAN;
+        let mut motion = vec![Vec2::ZERO; W * H];
+        motion[5 * W + 5] = Vec2::new(f32::NAN, 0.0);
+        for _ in 0..3 {
+            let mut out = image.clone();
+            taa.apply(&mut out, &motion, W, H);
+            for (i, o) in out.iter().enumerate() {
+                if i != 3 * W + 3 {
+                    assert!(
+                        (*o - Vec3::splat(0.5)).abs().max_element() < 1e-6,
+                        "{i}: {o}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_spaces_round_trip() {
+        for c in [
+            Vec3::new(0.2, 0.5, 0.9),
+            Vec3::new(3.0, 0.0, 1.0),
+            Vec3::ZERO,
+        ] {
+            assert!((rgb(ycocg(c)) - c).abs().max_element() < 1e-6);
+            assert!((expand(compress(c)) - c).abs().max_element() < 1e-5);
+        }
+    }
+}
