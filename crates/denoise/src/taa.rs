@@ -19,10 +19,19 @@
 //! bicubic), the box at `gamma` 0.5 and `alpha` 0.3 (chosen on two orbits; a common TAA takes
 //! 1 and 0.1, which blur more behind a moving camera: FLIP rose 10%); a pixel whose every tap
 //! falls outside the image, or whose motion is not finite, takes this frame's value.
+//!
+//! The blend runs in lanes ([`F32xN`], 16 pixels at a time with AVX-512: the box's sums,
+//! this frame's pixels and the history's taps gathered), the same arithmetic in the same
+//! order as the scalar `pixel`, which stays the reference it is tested against bit for bit
+//! (and runs for images of 2^24 pixels or more, whose indices an `f32` lane does not hold).
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
+
+use crate::simd::{
+    self, dispatch, gather3, iota, luminance_lanes, max, min, ByGroups, F32xN, Groups, Isa,
+};
 
 /// The weight of this frame's value in the blend (chosen on the orbits of the Cornell box and
 /// the garden among 0.1, 0.2 and 0.3, BENCHMARKS.md).
@@ -45,12 +54,28 @@ pub struct Taa {
     ycocg: Vec<[f32; 4]>,
     /// Their sums along each row's 3 pixels: the values, their squares and the count.
     rows: Vec<[f32; 7]>,
+    /// The blend in scalar code (the reference the lanes are tested against).
+    scalar: bool,
+    /// The widest lanes the blend uses (narrower ones for tests).
+    isa: Isa,
 }
 
 impl Taa {
     /// Forgets the history (the next frame is kept as it is).
     pub fn reset(&mut self) {
         self.history.clear();
+    }
+
+    /// Blends in scalar code instead of lanes (the same arithmetic; for tests).
+    #[doc(hidden)]
+    pub fn set_scalar(&mut self, scalar: bool) {
+        self.scalar = scalar;
+    }
+
+    /// Caps the blend's lanes at AVX2 (`avx2`) or plain arrays (`portable`) (for tests).
+    #[doc(hidden)]
+    pub fn set_lanes(&mut self, lanes: &str) {
+        self.isa = Isa::named(lanes);
     }
 
     /// Blends `image` (`width x height`, row-major) with the history through `motion` (where
@@ -103,10 +128,26 @@ impl Taa {
                 }
             });
         let (history, current, rows) = (&self.history, &*image, &self.rows);
+        // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
+        let (lanes, isa) = (!self.scalar && n < 1 << 24, self.isa);
         self.next
             .par_chunks_mut(width)
             .enumerate()
             .for_each(|(y, out)| {
+                if lanes {
+                    let size = (width, height);
+                    let b = Blend {
+                        current,
+                        history,
+                        motion,
+                        rows,
+                        size,
+                        y,
+                        out,
+                    };
+                    dispatch(isa, ByGroups(b));
+                    return;
+                }
                 for (x, out) in out.iter_mut().enumerate() {
                     let i = y * width + x;
                     let mut sums = [0.0f32; 7];
@@ -164,6 +205,155 @@ fn compress(c: Vec3) -> Vec3 {
 /// The inverse of [`compress`].
 fn expand(c: Vec3) -> Vec3 {
     c * (1.0 / (1.0 - luminance(c).clamp(0.0, 0.999)))
+}
+
+/// [`pixel`] of row `y`'s pixels in lanes, [`F32xN::N`] at a time, into `out` (the row's):
+/// the same arithmetic in the same order, so the same numbers. (No closures here: see
+/// `simd::exp_neg`.)
+struct Blend<'a> {
+    current: &'a [Vec3],
+    history: &'a [Vec3],
+    motion: &'a [Vec2],
+    rows: &'a [[f32; 7]],
+    size: (usize, usize),
+    y: usize,
+    out: &'a mut [Vec3],
+}
+
+impl Groups for Blend<'_> {
+    fn width(&self) -> usize {
+        self.size.0
+    }
+
+    #[inline(always)]
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool {
+        let ((w, h), y) = (self.size, self.y);
+        let n = V::N.min(w - x0);
+        let splat = V::splat;
+        let (zero, one) = (splat(0.0), splat(1.0));
+        let lane = iota::<V>();
+        let valid = splat(n as f32).gt(lane);
+        let xs = splat(x0 as f32) + lane;
+        let index = splat((y * w) as f32) + xs;
+        // The 3x3 box's sums: the rows' sums of the rows around.
+        let rows = self.rows.as_ptr().cast::<f32>();
+        let mut sums = [zero; 7];
+        for qy in y.saturating_sub(1)..(y + 2).min(h) {
+            let q = splat((qy * w) as f32) + xs;
+            for (k, s) in sums.iter_mut().enumerate() {
+                // SAFETY: the lanes where `valid` index pixels of the image (row `qy`).
+                *s = *s + unsafe { V::gather(rows.add(k), q, 7, valid) };
+            }
+        }
+        // SAFETY: as above (this row's pixels).
+        let (c, mx, my) = unsafe {
+            let motion = self.motion.as_ptr().cast::<f32>();
+            (
+                gather3(self.current, index, valid),
+                V::gather(motion, index, 2, valid),
+                V::gather(motion.add(1), index, 2, valid),
+            )
+        };
+        // The history's bilinear value ([`reproject`]).
+        let (px, py) = (xs + mx, splat(y as f32) + my);
+        let moves = V::and(valid, V::and(simd::finite(px), simd::finite(py)));
+        let (x0f, y0f) = (px.floor(), py.floor());
+        let (fx, fy) = (px - x0f, py - y0f);
+        let mut sum = [zero; 3];
+        let mut weight = zero;
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let bx = if dx == 0.0 { one - fx } else { fx };
+            let by = if dy == 0.0 { one - fy } else { fy };
+            let wt = bx * by;
+            let (qx, qy) = (x0f + splat(dx), y0f + splat(dy));
+            let inside = V::and(
+                V::and(V::and(moves, wt.gt(zero)), V::and(qx.ge(zero), qy.ge(zero))),
+                V::and(splat(w as f32).gt(qx), splat(h as f32).gt(qy)),
+            );
+            if !V::any(inside) {
+                continue;
+            }
+            // SAFETY: the lanes where `inside` index pixels of the history (as large as the
+            // image).
+            let t = unsafe { gather3(self.history, qy * splat(w as f32) + qx, inside) };
+            let take = V::and(
+                inside,
+                V::and(
+                    simd::finite(t[0]),
+                    V::and(simd::finite(t[1]), simd::finite(t[2])),
+                ),
+            );
+            for (s, t) in sum.iter_mut().zip(t) {
+                *s = V::select(take, *s + t * wt, *s);
+            }
+            weight = V::select(take, weight + wt, weight);
+        }
+        let finite_c = V::and(
+            simd::finite(c[0]),
+            V::and(simd::finite(c[1]), simd::finite(c[2])),
+        );
+        let blends = V::and(finite_c, weight.ge(splat(1e-3)));
+        let r = one / weight;
+        let past = [sum[0] * r, sum[1] * r, sum[2] * r];
+        // The box and the blend ([`pixel`]).
+        let inv = one / sums[6];
+        let now = ycocg_lanes(compress_lanes(c));
+        let past = ycocg_lanes(compress_lanes(past));
+        let mut blend = [zero; 3];
+        for k in 0..3 {
+            let mean = sums[k] * inv;
+            let square = sums[3 + k] * inv;
+            let sigma = max(square - mean * mean, zero).sqrt();
+            let (low, high) = (mean - splat(GAMMA) * sigma, mean + splat(GAMMA) * sigma);
+            let clamped = min(max(past[k], min(low, now[k])), max(high, now[k]));
+            blend[k] = clamped + (now[k] - clamped) * splat(ALPHA);
+        }
+        let out = rgb_lanes(blend);
+        let out = expand_lanes([max(out[0], zero), max(out[1], zero), max(out[2], zero)]);
+        let o = [
+            V::select(blends, out[0], c[0]).to_array(),
+            V::select(blends, out[1], c[1]).to_array(),
+            V::select(blends, out[2], c[2]).to_array(),
+        ];
+        for (j, out) in self.out[x0..x0 + n].iter_mut().enumerate() {
+            *out = Vec3::new(o[0][j], o[1][j], o[2][j]);
+        }
+        false
+    }
+}
+
+/// [`compress`] in lanes.
+#[inline(always)]
+fn compress_lanes<V: F32xN>(c: [V; 3]) -> [V; 3] {
+    let s = V::splat(1.0) / (V::splat(1.0) + max(luminance_lanes(c), V::splat(0.0)));
+    [c[0] * s, c[1] * s, c[2] * s]
+}
+
+/// [`expand`] in lanes (`f32::clamp`'s selects: a NaN stays NaN).
+#[inline(always)]
+fn expand_lanes<V: F32xN>(c: [V; 3]) -> [V; 3] {
+    let l = luminance_lanes(c);
+    let l = V::select(V::splat(0.0).gt(l), V::splat(0.0), l);
+    let l = V::select(l.gt(V::splat(0.999)), V::splat(0.999), l);
+    let s = V::splat(1.0) / (V::splat(1.0) - l);
+    [c[0] * s, c[1] * s, c[2] * s]
+}
+
+/// [`ycocg`] in lanes.
+#[inline(always)]
+fn ycocg_lanes<V: F32xN>(c: [V; 3]) -> [V; 3] {
+    let (a, b) = (V::splat(0.25), V::splat(0.5));
+    [
+        a * c[0] + b * c[1] + a * c[2],
+        b * c[0] - b * c[2],
+        V::splat(-0.25) * c[0] + b * c[1] - a * c[2],
+    ]
+}
+
+/// [`rgb`] in lanes.
+#[inline(always)]
+fn rgb_lanes<V: F32xN>(c: [V; 3]) -> [V; 3] {
+    [c[0] + c[1] - c[2], c[0] + c[2], c[0] - c[1] - c[2]]
 }
 
 /// The history's bilinear value at pixel `(x, y)`'s previous place, `None` where no tap lies
@@ -292,6 +482,51 @@ mod tests {
         for (x, expected) in [(0, 0.2), (15, 0.2), (17, 0.2), (18, 0.8), (21, 0.8)] {
             let v = out[5 * W + x].x;
             assert!((v - expected).abs() < 0.02, "x {x}: {v}");
+        }
+    }
+
+    #[test]
+    fn the_lanes_agree_with_the_scalar_blend() {
+        // Random light (bright pixels among them), motion of up to 3 pixels (taps past the
+        // border), a NaN and an infinite pixel and a NaN motion, a width that is no multiple
+        // of the lanes; every kind of lanes against the scalar blend, bit for bit.
+        let (w, h) = (37, 11);
+        let frame = |k: u64| {
+            let mut rng = Rng::new(0x7aa + k, 2);
+            let mut image: Vec<Vec3> = (0..w * h)
+                .map(|_| {
+                    let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                    if rng.next_f32() < 0.05 {
+                        c * 40.0
+                    } else {
+                        c
+                    }
+                })
+                .collect();
+            let mut motion: Vec<Vec2> = (0..w * h)
+                .map(|_| Vec2::new(6.0 * rng.next_f32() - 3.0, 6.0 * rng.next_f32() - 3.0))
+                .collect();
+            image[3 * w + 5] = Vec3::new(f32::NAN, 0.0, 0.0);
+            image[4 * w + 9] = Vec3::splat(f32::INFINITY);
+            motion[6 * w + 2] = Vec2::new(f32::NAN, 1.0);
+            (image, motion)
+        };
+        for lanes in ["avx512", "avx2", "portable"] {
+            let (mut fast, mut slow) = (Taa::default(), Taa::default());
+            fast.set_lanes(lanes);
+            slow.set_scalar(true);
+            for k in 0..4 {
+                let (image, motion) = frame(k);
+                let (mut a, mut b) = (image.clone(), image);
+                fast.apply(&mut a, &motion, w, h);
+                slow.apply(&mut b, &motion, w, h);
+                for (i, (p, q)) in a.iter().zip(&b).enumerate() {
+                    assert!(
+                        p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits),
+                        "{lanes}, frame {k}, pixel {i}: {p} against {q}"
+                    );
+                }
+            }
         }
     }
 
