@@ -347,16 +347,17 @@ impl Planes {
         });
     }
 
-    /// Gives every pixel's current light to `f(&mut out[i], light)` (row-major, one entry a
-    /// pixel; the second signal zero when one is filtered).
-    pub fn put_light<T: Send>(&self, out: &mut [T], f: impl Fn(&mut T, [Vec3; 2]) + Sync) {
-        self.for_light_rows(out, |_, row, view| {
+    /// Gives every pixel's current light to `f(i, &mut out[i], light)` (row-major, one entry
+    /// a pixel; the second signal zero when one is filtered).
+    pub fn put_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, &mut T, [Vec3; 2]) + Sync) {
+        self.for_light_rows(out, |y, row, view| {
+            let i0 = y * row.len();
             let c = |s: usize, k: usize| &view.light(s, k)[..row.len()];
             let first = [c(0, 0), c(0, 1), c(0, 2)];
             let second = (view.signals == 2).then(|| [c(1, 0), c(1, 1), c(1, 2)]);
             for (x, o) in row.iter_mut().enumerate() {
                 let at = |p: [&[f32]; 3]| Vec3::new(p[0][x], p[1][x], p[2][x]);
-                f(o, [at(first), second.map_or(Vec3::ZERO, at)]);
+                f(i0 + x, o, [at(first), second.map_or(Vec3::ZERO, at)]);
             }
         });
     }

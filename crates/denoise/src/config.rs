@@ -144,6 +144,12 @@ pub struct FilterConfig {
     /// clamped to this frame's 3x3 neighbourhood's mean plus and minus half a standard
     /// deviation (in YCoCg of light compressed by its luminance).
     pub svgf_taa: bool,
+    /// SVGF: converge while the camera is still (not in the paper): a pixel whose motion
+    /// vector is 0 takes each frame into a plain mean of its history instead of at a weight of
+    /// 0.2, and its luminance test narrows with the mean's noise, so a still view converges
+    /// to the path tracer's image; a pixel that moves is filtered as the paper does
+    /// ([`crate::svgf`]).
+    pub svgf_converge: bool,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
     /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
@@ -213,6 +219,7 @@ impl Default for FilterConfig {
             svgf_split: true,
             svgf_normal_width: 16.0,
             svgf_taa: false,
+            svgf_converge: false,
             sigma_direct: 1.25,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -314,6 +321,7 @@ impl FilterConfig {
             split: self.svgf_split,
             normal_width: self.svgf_normal_width,
             taa: self.svgf_taa,
+            converge: self.svgf_converge,
         }
     }
 

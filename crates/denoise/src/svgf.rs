@@ -38,6 +38,18 @@
 //!   ([`SvgfParams::normal_width`] 0).
 //! - Blending: `alpha = max(1 / n, 0.2)` for the light and the moments, n the history length
 //!   (capped at 32), as the paper.
+//! - **Converging while still** (`converge`, [`SvgfParams::converge`]; not in the paper, off
+//!   by default): the paper's history never converges (each frame weighs 0.2, and the
+//!   history holds the first a-trous pass's output, so a still view's detail that the first
+//!   pass blurs never comes back). With the option a pixel whose motion vector is 0 blends
+//!   each frame into a plain mean of its history (`alpha = 1 / (1 / W + 1)`, W the sum of the
+//!   squared weights of the frames the history holds, kept per pixel; at most the paper's
+//!   alpha), its history keeps the integrated light instead of the first pass's (once it has
+//!   taken a previous frame's: a new history, as on a camera path's first frame, whose motion
+//!   vectors are 0, is the paper's), and its luminance test narrows with the mean's noise
+//!   ([`narrowing`]). A pixel that moves is filtered as the paper does, so a moving camera's
+//!   frames are the paper's bit for bit. The sky and light sources still pass through with
+//!   one frame's light.
 //! - The sky and light sources (`emitter`) pass through with this frame's light and are not
 //!   filtered with their neighbours.
 //! - A tap's weight under 1e-10 (the centre's is at least 9/64) is 0, and so is a luminance
@@ -108,6 +120,11 @@ pub struct SvgfParams {
     /// Temporal antialiasing of the output ([`crate::taa`]), as the paper applies after the
     /// filter.
     pub taa: bool,
+    /// Converge while the camera is still (not in the paper): a pixel that has not moved
+    /// (its motion vector 0) blends its history as a plain mean of the frames it has seen
+    /// instead of at `alpha = 0.2`, and its luminance test narrows as the mean's noise falls
+    /// ([`integrate`]); a pixel that moves is filtered as the paper does, bit for bit.
+    pub converge: bool,
 }
 
 impl Default for SvgfParams {
@@ -118,6 +135,7 @@ impl Default for SvgfParams {
             split: true,
             normal_width: 16.0,
             taa: false,
+            converge: false,
         }
     }
 }
@@ -153,6 +171,12 @@ const SIGMA_L: f32 = 4.0;
 const SIGMA_Z: f32 = 1.0;
 const MIN_ALPHA: f32 = 0.2;
 const MAX_LENGTH: f32 = 32.0;
+/// The sum of the squared weights of the paper's history (`alpha = 0.2` for ever:
+/// `alpha^2 / (1 - (1 - alpha)^2)`), what its luminance test is tuned to.
+const PAPER_WEIGHTS2: f32 = MIN_ALPHA * MIN_ALPHA / (1.0 - (1.0 - MIN_ALPHA) * (1.0 - MIN_ALPHA));
+/// The smallest sum of squared weights of a converging history: a plain mean of at most 4096
+/// frames.
+const MIN_WEIGHTS2: f32 = 1.0 / 4096.0;
 const DEPTH_TOLERANCE: f32 = 0.1;
 const NORMAL_COSINE: f32 = 0.9;
 /// Added to the normal width in the reprojection's normal test (the authors' implementation's
@@ -197,6 +221,7 @@ impl Svgf {
             split,
             normal_width,
             taa,
+            converge,
         } = *p;
         let n = f.width * f.height;
         for (name, len) in [
@@ -249,6 +274,7 @@ impl Svgf {
                     previous,
                     split,
                     normal_width,
+                    converge,
                     y,
                     row,
                     next,
@@ -260,16 +286,21 @@ impl Svgf {
             self.planes.amend_variance(&rows, |i| {
                 short(f, next, i).then(|| spatial_variance(f, next, i))
             });
+            // The history's light: the first pass's (the paper's), or the integrated light
+            // the temporal pass kept where the pixel converges.
+            let keep = |i: usize, s: &mut State, light| {
+                if !keeps_integrated(f, s, i, converge) {
+                    s.light = light;
+                }
+            };
             for i in 0..iterations {
                 self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
                 if i == 0 {
-                    self.planes
-                        .put_light(&mut self.next, |s, light| s.light = light);
+                    self.planes.put_light(&mut self.next, keep);
                 }
             }
             if iterations == 0 {
-                self.planes
-                    .put_light(&mut self.next, |s, light| s.light = light);
+                self.planes.put_light(&mut self.next, keep);
             }
             self.planes.for_light_rows(out, |y, out, view| {
                 dispatch(isa, ByGroups(Output { f, y, view, out }));
@@ -281,20 +312,20 @@ impl Svgf {
                 .into_par_iter()
                 .enumerate()
                 .for_each(|(i, (light, s))| {
-                    (*light, *s) = integrate(f, previous, split, normal_width, i)
+                    (*light, *s) = integrate(f, previous, split, normal_width, converge, i)
                 });
-            self.spatial_variance(f);
+            self.spatial_variance(f, converge);
             self.depth_gradient(f);
             for i in 0..iterations {
                 self.atrous(f, kernel, 1 << i, signals(split));
                 std::mem::swap(&mut self.light, &mut self.next_light);
                 std::mem::swap(&mut self.variance, &mut self.next_variance);
                 if i == 0 {
-                    self.keep_light();
+                    self.keep_light(f, converge);
                 }
             }
             if iterations == 0 {
-                self.keep_light();
+                self.keep_light(f, converge);
             }
             out.par_iter_mut()
                 .enumerate()
@@ -310,15 +341,20 @@ impl Svgf {
     }
 
     /// `light` as this frame's history (the scalar passes).
-    fn keep_light(&mut self) {
+    fn keep_light(&mut self, f: &SvgfFrame, converge: bool) {
         (&mut self.next, &self.light)
             .into_par_iter()
-            .for_each(|(s, light)| s.light = *light);
+            .enumerate()
+            .for_each(|(i, (s, light))| {
+                if !keeps_integrated(f, s, i, converge) {
+                    s.light = *light;
+                }
+            });
     }
 
     /// The luminance variance of each signal (from the temporal moments, or [`spatial_variance`]
     /// where the history is [`short`]) into `variance`.
-    fn spatial_variance(&mut self, f: &SvgfFrame) {
+    fn spatial_variance(&mut self, f: &SvgfFrame, converge: bool) {
         let n = f.width * f.height;
         self.variance.resize(n, [0.0; 2]);
         let next = &self.next;
@@ -326,7 +362,8 @@ impl Svgf {
             *v = if short(f, next, i) {
                 spatial_variance(f, next, i)
             } else {
-                variance(next[i].m)
+                let k = narrowing(f, &next[i], i, converge);
+                variance(next[i].m).map(|v| v * k)
             }
         });
     }
@@ -459,6 +496,9 @@ struct State {
     length: f32,
     depth: f32,
     normal: Vec3,
+    /// The sum of the squares of the weights of the frames the history's mean holds (1 for
+    /// one frame; `1 / n` for a plain mean of n; [`SvgfParams::converge`]).
+    weights2: f32,
 }
 
 /// The luminance variance of each signal from moments `m`.
@@ -478,6 +518,7 @@ fn integrate(
     previous: &[State],
     split: bool,
     normal_width: f32,
+    converge: bool,
     i: usize,
 ) -> ([Vec3; 2], State) {
     let (w, h) = (f.width, f.height);
@@ -489,17 +530,26 @@ fn integrate(
     };
     let lum = [luminance(current[0]), luminance(current[1])];
     let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
-    let state = |m, length| State {
-        light: [Vec3::ZERO; 2],
-        m,
-        length,
-        depth: f.depth[i],
-        normal: f.normal[i],
+    // Where the pixel converges its history keeps the integrated light (else the first
+    // a-trous pass's, filled in later: `keeps_integrated`).
+    let state = |light: [Vec3; 2], m, length, weights2| {
+        let mut s = State {
+            light: [Vec3::ZERO; 2],
+            m,
+            length,
+            depth: f.depth[i],
+            normal: f.normal[i],
+            weights2,
+        };
+        if keeps_integrated(f, &s, i, converge) {
+            s.light = light;
+        }
+        s
     };
     let finite = current.iter().all(|c| c.is_finite());
     if passes_through(f, i) || !finite {
         let light = if finite { current } else { [Vec3::ZERO; 2] };
-        return (light, state(now, 0.0));
+        return (light, state(light, now, 0.0, 1.0));
     }
     // The normal test's largest squared distance (with `normal_width`).
     let reach = if normal_width > 0.0 {
@@ -517,6 +567,7 @@ fn integrate(
     let mut old = [Vec3::ZERO; 2];
     let mut old_m = [0.0f32; 4];
     let mut old_len = 0.0;
+    let mut old_w2 = 0.0;
     for (dx, dy, bw) in [
         (0, 0, (1.0 - fx) * (1.0 - fy)),
         (1, 0, fx * (1.0 - fy)),
@@ -549,19 +600,63 @@ fn integrate(
             *o += m * bw;
         }
         old_len += p.length * bw;
+        old_w2 += p.weights2 * bw;
     }
     if sum_w < 1e-3 {
-        return (current, state(now, 1.0));
+        return (current, state(current, now, 1.0, 1.0));
     }
     let inv = 1.0 / sum_w;
     let n_new = (old_len * inv + 1.0).min(MAX_LENGTH);
     let alpha = (1.0 / n_new).max(MIN_ALPHA);
+    // With `converge`: a still pixel takes one more frame into a mean of `1 / weights2`
+    // frames, if that is slower than the paper's blend (without, `weights2` is not read).
+    let (alpha, weights2) = if converge {
+        let w2 = (old_w2 * inv).max(MIN_WEIGHTS2);
+        let alpha = if converges(f, i, converge) {
+            alpha.min(1.0 / (1.0 / w2 + 1.0))
+        } else {
+            alpha
+        };
+        (alpha, (1.0 - alpha) * (1.0 - alpha) * w2 + alpha * alpha)
+    } else {
+        (alpha, 1.0)
+    };
     let light = [
         old[0] * inv * (1.0 - alpha) + current[0] * alpha,
         old[1] * inv * (1.0 - alpha) + current[1] * alpha,
     ];
     let m = std::array::from_fn(|k| old_m[k] * inv * (1.0 - alpha) + now[k] * alpha);
-    (light, state(m, n_new))
+    (light, state(light, m, n_new, weights2))
+}
+
+/// With `converge`, the pixel has not moved since the previous frame (its motion vector is 0).
+fn converges(f: &SvgfFrame, i: usize, converge: bool) -> bool {
+    converge && f.motion[i] == Vec2::ZERO
+}
+
+/// The pixel's new history `s` keeps its integrated light rather than the first a-trous
+/// pass's: with `converge`, where it is still and took a previous frame's history (the sum
+/// of its squared weights then below 1; a new history, as on a path's first frame, is the
+/// paper's, so a moving camera's frames are the paper's bit for bit).
+fn keeps_integrated(f: &SvgfFrame, s: &State, i: usize, converge: bool) -> bool {
+    converges(f, i, converge) && s.weights2 < 1.0
+}
+
+/// What the luminance test's variance at pixel `i` (whose history is `s`) is multiplied by:
+/// with `converge`, where the pixel is still, the square of the ratio of its history's sum of
+/// squared weights to the paper's (at most 1); else 1. The test's width, `sigma_l` (4)
+/// standard deviations of one frame's light, is 12 standard errors of the paper's history
+/// (whose sum of squared weights is 1/9); for a plain mean of `n >= 9` frames it becomes `36 /
+/// sqrt(n)` standard errors of that mean, so the filter fades as the frames accumulate and the
+/// image converges to their mean. (With the ratio itself, the test a constant 12 standard
+/// errors, the still views of `experiments/001-still.toml` converged a little more slowly.)
+fn narrowing(f: &SvgfFrame, s: &State, i: usize, converge: bool) -> f32 {
+    if converges(f, i, converge) {
+        let k = (s.weights2 * (1.0 / PAPER_WEIGHTS2)).min(1.0);
+        k * k
+    } else {
+        1.0
+    }
 }
 
 /// [`integrate`] in lanes, [`F32xN::N`] pixels of row `y` at a time: the integrated light, its
@@ -575,6 +670,7 @@ struct Temporal<'a, 'f> {
     previous: &'a [State],
     split: bool,
     normal_width: f32,
+    converge: bool,
     y: usize,
     row: LightRow<'a>,
     next: &'a mut [State],
@@ -586,6 +682,7 @@ const MOMENTS: usize = std::mem::offset_of!(State, m) / 4;
 const LENGTH: usize = std::mem::offset_of!(State, length) / 4;
 const DEPTH: usize = std::mem::offset_of!(State, depth) / 4;
 const NORMAL: usize = std::mem::offset_of!(State, normal) / 4;
+const WEIGHTS2: usize = std::mem::offset_of!(State, weights2) / 4;
 /// A record's size in `f32`s.
 const RECORD: i32 = (std::mem::size_of::<State>() / 4) as i32;
 
@@ -665,6 +762,7 @@ impl Groups for Temporal<'_, '_> {
         let mut old = [[zero; 3]; 2];
         let mut old_m = [zero; 4];
         let mut old_len = zero;
+        let mut old_w2 = zero;
         for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
             let bx = if dx == 0.0 { one - fx } else { fx };
             let by = if dy == 0.0 { one - fy } else { fy };
@@ -721,6 +819,10 @@ impl Groups for Temporal<'_, '_> {
                 *old = *old + unsafe { field(base, MOMENTS + k, q, keep) } * bw;
             }
             old_len = old_len + length * bw;
+            if self.converge {
+                // SAFETY: above.
+                old_w2 = old_w2 + unsafe { field(base, WEIGHTS2, q, keep) } * bw;
+            }
         }
         let blends = V::and(reprojects, sum_w.ge(splat(1e-3)));
         let inv = one / sum_w;
@@ -728,6 +830,18 @@ impl Groups for Temporal<'_, '_> {
         let n_new = V::select(n_new.gt(splat(MAX_LENGTH)), splat(MAX_LENGTH), n_new);
         let alpha = one / n_new;
         let alpha = V::select(alpha.ge(splat(MIN_ALPHA)), alpha, splat(MIN_ALPHA));
+        // With `converge`, `integrate`'s mean where the pixel is still.
+        let still = V::and(zero.ge(mx.abs()), zero.ge(my.abs()));
+        let (alpha, weights2) = if self.converge {
+            let w2 = (old_w2 * inv).at_least(splat(MIN_WEIGHTS2));
+            let mean = one / (one / w2 + one);
+            let alpha = V::select(V::and(still, alpha.gt(mean)), mean, alpha);
+            let keep = one - alpha;
+            let weights2 = keep * keep * w2 + alpha * alpha;
+            (alpha, V::select(blends, weights2, one))
+        } else {
+            (alpha, one)
+        };
         let mut light = [[zero; 3]; 2];
         for ((light, old), cur) in light.iter_mut().zip(&old).zip(&cur).take(signals) {
             for ((light, &old), &cur) in light.iter_mut().zip(old).zip(cur) {
@@ -747,6 +861,14 @@ impl Groups for Temporal<'_, '_> {
             }
             let l = m[2 * s];
             let var = flush_variance_lanes(m[2 * s + 1] - l * l);
+            let var = if self.converge {
+                // `narrowing`.
+                let k = min(weights2 * splat(1.0 / PAPER_WEIGHTS2), one);
+                let k = k * k;
+                var * V::select(still, k, one)
+            } else {
+                var
+            };
             store_first(var, n, &mut self.row.variance(s)[x0..]);
             store_first(luminance_lanes(*light), n, &mut self.row.luminance(s)[x0..]);
         }
@@ -757,13 +879,25 @@ impl Groups for Temporal<'_, '_> {
             m[3].to_array(),
         ];
         let la = length.to_array();
+        let wa = weights2.to_array();
+        // Where the pixel keeps its integrated light (`keeps_integrated`).
+        let mut kept = [[[0.0; LANES]; 3]; 2];
+        if self.converge {
+            let keeps = V::and(still, one.gt(weights2));
+            for (kept, light) in kept.iter_mut().zip(&light).take(signals) {
+                for (kept, &c) in kept.iter_mut().zip(light) {
+                    *kept = V::select(keeps, c, zero).to_array();
+                }
+            }
+        }
         for (j, s) in self.next[x0..x0 + n].iter_mut().enumerate() {
             *s = State {
-                light: [Vec3::ZERO; 2],
+                light: kept.map(|c| Vec3::new(c[0][j], c[1][j], c[2][j])),
                 m: [ma[0][j], ma[1][j], ma[2][j], ma[3][j]],
                 length: la[j],
                 depth: f.depth[i0 + j],
                 normal: f.normal[i0 + j],
+                weights2: wa[j],
             };
         }
         V::any(V::and(live, splat(4.0).gt(length)))

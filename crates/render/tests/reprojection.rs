@@ -496,6 +496,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         sky_coverage: false,
         svgf_normal_width: 4.0,
         svgf_taa: true,
+        svgf_converge: true,
         ..Default::default()
     };
     let run = |cfg: &Config| {

@@ -402,6 +402,11 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                  (16: the authors' implementation); 0: a cosine of at least 0.9",
             );
         ui.checkbox(&mut f.svgf_taa, "temporal antialiasing after it");
+        ui.checkbox(&mut f.svgf_converge, "converge when still")
+            .on_hover_text(
+                "Not in the paper: a pixel that has not moved takes its frames into a plain \
+                 mean and its luminance test narrows with the mean's noise",
+            );
     });
     ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
         let mut radius = f.kernel / 2;
