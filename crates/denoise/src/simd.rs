@@ -161,6 +161,12 @@ pub fn finite<V: F32xN>(x: V) -> V::Mask {
     V::splat(f32::INFINITY).gt(x.abs())
 }
 
+/// The lanes where all three values are finite.
+#[inline(always)]
+pub fn finite3<V: F32xN>(c: [V; 3]) -> V::Mask {
+    V::and(finite(c[0]), V::and(finite(c[1]), finite(c[2])))
+}
+
 /// Stores the first `n` lanes of `value` at the start of `out` (all of them in one store when
 /// `n` is [`F32xN::N`]; the others are left alone).
 #[inline(always)]

@@ -855,19 +855,22 @@ impl Groups for Temporal<'_, '_> {
         }
         let length = V::select(blends, n_new, V::select(reprojects, one, zero));
 
+        // `narrowing`, with `converge` (computed once for both signals).
+        let narrow = if self.converge {
+            let k = min(weights2 * splat(1.0 / PAPER_WEIGHTS2), one);
+            Some(V::select(still, k * k, one))
+        } else {
+            None
+        };
         for (s, light) in light.iter().enumerate().take(signals) {
             for (k, &c) in light.iter().enumerate() {
                 store_first(c, n, &mut self.row.light(s, k)[x0..]);
             }
             let l = m[2 * s];
             let var = flush_variance_lanes(m[2 * s + 1] - l * l);
-            let var = if self.converge {
-                // `narrowing`.
-                let k = min(weights2 * splat(1.0 / PAPER_WEIGHTS2), one);
-                let k = k * k;
-                var * V::select(still, k, one)
-            } else {
-                var
+            let var = match narrow {
+                Some(k) => var * k,
+                None => var,
             };
             store_first(var, n, &mut self.row.variance(s)[x0..]);
             store_first(luminance_lanes(*light), n, &mut self.row.luminance(s)[x0..]);
@@ -880,19 +883,26 @@ impl Groups for Temporal<'_, '_> {
         ];
         let la = length.to_array();
         let wa = weights2.to_array();
-        // Where the pixel keeps its integrated light (`keeps_integrated`).
-        let mut kept = [[[0.0; LANES]; 3]; 2];
+        // Where the pixel keeps its integrated light (`keeps_integrated`), with `converge`
+        // (else the first pass's, filled in later).
+        let mut kept = None;
         if self.converge {
             let keeps = V::and(still, one.gt(weights2));
-            for (kept, light) in kept.iter_mut().zip(&light).take(signals) {
-                for (kept, &c) in kept.iter_mut().zip(light) {
-                    *kept = V::select(keeps, c, zero).to_array();
+            let mut k = [[[0.0; LANES]; 3]; 2];
+            for (k, light) in k.iter_mut().zip(&light).take(signals) {
+                for (k, &c) in k.iter_mut().zip(light) {
+                    *k = V::select(keeps, c, zero).to_array();
                 }
             }
+            kept = Some(k);
         }
         for (j, s) in self.next[x0..x0 + n].iter_mut().enumerate() {
+            let at = |c: &[[f32; LANES]; 3]| Vec3::new(c[0][j], c[1][j], c[2][j]);
             *s = State {
-                light: kept.map(|c| Vec3::new(c[0][j], c[1][j], c[2][j])),
+                light: match &kept {
+                    Some([a, b]) => [at(a), at(b)],
+                    None => [Vec3::ZERO; 2],
+                },
                 m: [ma[0][j], ma[1][j], ma[2][j], ma[3][j]],
                 length: la[j],
                 depth: f.depth[i0 + j],

@@ -130,12 +130,12 @@ impl Taa {
         let (history, current, rows) = (&self.history, &*image, &self.rows);
         // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
         let (lanes, isa) = (!self.scalar && n < 1 << 24, self.isa);
+        let size = (width, height);
         self.next
             .par_chunks_mut(width)
             .enumerate()
             .for_each(|(y, out)| {
                 if lanes {
-                    let size = (width, height);
                     let b = Blend {
                         current,
                         history,
@@ -156,7 +156,6 @@ impl Taa {
                             *s += r;
                         }
                     }
-                    let size = (width, height);
                     *out = pixel(current[i], &sums, history, motion[i], size, (x, y));
                 }
             });
@@ -276,23 +275,13 @@ impl Groups for Blend<'_> {
             // SAFETY: the lanes where `inside` index pixels of the history (as large as the
             // image).
             let t = unsafe { gather3(self.history, qy * splat(w as f32) + qx, inside) };
-            let take = V::and(
-                inside,
-                V::and(
-                    simd::finite(t[0]),
-                    V::and(simd::finite(t[1]), simd::finite(t[2])),
-                ),
-            );
+            let take = V::and(inside, simd::finite3(t));
             for (s, t) in sum.iter_mut().zip(t) {
                 *s = V::select(take, *s + t * wt, *s);
             }
             weight = V::select(take, weight + wt, weight);
         }
-        let finite_c = V::and(
-            simd::finite(c[0]),
-            V::and(simd::finite(c[1]), simd::finite(c[2])),
-        );
-        let blends = V::and(finite_c, weight.ge(splat(1e-3)));
+        let blends = V::and(simd::finite3(c), weight.ge(splat(1e-3)));
         let r = one / weight;
         let past = [sum[0] * r, sum[1] * r, sum[2] * r];
         // The box and the blend ([`pixel`]).
