@@ -23,7 +23,6 @@
 //! refined by a Newton step ([`F32xN::recip`]) instead of divisions, which one unit runs one
 //! at a time. So the lanes agree with the scalar pass to rounding, not bit for bit.
 
-use glam::Vec3;
 use pathlight_core::color::LUMINANCE;
 use rayon::prelude::*;
 
@@ -299,19 +298,18 @@ impl Planes {
     }
 
     /// Lays out the light, its luminance variance and luminance row by row: `f(y, extra, row)`
-    /// writes image row `y`'s (`extra` is the row's part of `extra`, one entry a pixel); what
-    /// it returns, row by row.
+    /// writes image row `y`'s (`extra` is the row's part of `extra`, as many entries a row);
+    /// what it returns, row by row.
     pub fn load_light_rows<T: Send, R: Send>(
         &mut self,
         extra: &mut [T],
         f: impl Fn(usize, &mut [T], LightRow) -> R + Sync,
     ) -> Vec<R> {
         let g = self.moving;
-        let (w, pad, signals) = (g.width, g.pad, self.signals);
-        assert_eq!(extra.len(), w * g.height, "one entry a pixel");
+        let (pad, signals) = (g.pad, self.signals);
         self.current[pad * g.row()..(pad + g.height) * g.row()]
             .par_chunks_mut(g.row())
-            .zip(extra.par_chunks_mut(w))
+            .zip(extra.par_chunks_mut(row_len(extra.len(), g.height)))
             .enumerate()
             .map(|(y, (row, extra))| {
                 let row = LightRow {
@@ -347,30 +345,15 @@ impl Planes {
         });
     }
 
-    /// Gives every pixel's current light to `f(i, &mut out[i], light)` (row-major, one entry
-    /// a pixel; the second signal zero when one is filtered).
-    pub fn put_light<T: Send>(&self, out: &mut [T], f: impl Fn(usize, &mut T, [Vec3; 2]) + Sync) {
-        self.for_light_rows(out, |y, row, view| {
-            let i0 = y * row.len();
-            let c = |s: usize, k: usize| &view.light(s, k)[..row.len()];
-            let first = [c(0, 0), c(0, 1), c(0, 2)];
-            let second = (view.signals == 2).then(|| [c(1, 0), c(1, 1), c(1, 2)]);
-            for (x, o) in row.iter_mut().enumerate() {
-                let at = |p: [&[f32]; 3]| Vec3::new(p[0][x], p[1][x], p[2][x]);
-                f(i0 + x, o, [at(first), second.map_or(Vec3::ZERO, at)]);
-            }
-        });
-    }
-
-    /// `f(y, out_row, view)` of every image row `y`, the row's part of `out` (one entry a
-    /// pixel) and a view of its current light.
+    /// `f(y, out_row, view)` of every image row `y`, the row's part of `out` (as many entries
+    /// a row) and a view of its current light.
     pub fn for_light_rows<T: Send>(
         &self,
         out: &mut [T],
         f: impl Fn(usize, &mut [T], LightView) + Sync,
     ) {
         let (g, fixed) = (self.moving, self.fixed);
-        out.par_chunks_mut(g.width)
+        out.par_chunks_mut(row_len(out.len(), g.height))
             .enumerate()
             .for_each(|(y, row)| {
                 let (py, pf) = (
@@ -434,6 +417,15 @@ impl Planes {
         g.for_rows_by(&mut self.next, step, |y, row| pass.row(y, row));
         std::mem::swap(&mut self.current, &mut self.next);
     }
+}
+
+/// A row's part of a buffer of `len` entries for an image `height` rows high.
+fn row_len(len: usize, height: usize) -> usize {
+    assert!(
+        len.is_multiple_of(height) && len > 0,
+        "{len} entries for {height} rows"
+    );
+    len / height
 }
 
 struct Pass<'a> {

@@ -91,7 +91,7 @@ use rayon::prelude::*;
 
 use crate::config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig};
 use crate::simd::{
-    dispatch, exp_neg, finite, gather3, iota, luminance_lanes, store_first, ByGroups, F32xN,
+    channels, dispatch, exp_neg, finite, iota, luminance_lanes, store_first, ByGroups, F32xN,
     Groups, Isa, Kernel, LANES,
 };
 
@@ -403,33 +403,17 @@ impl Groups for FillRow<'_, '_> {
         let splat = V::splat;
         let (zero, one) = (splat(0.0), splat(1.0));
         let lanes = splat(n as f32).gt(iota::<V>());
-        let index = splat((self.y * w + x0) as f32) + iota::<V>();
-        // SAFETY: the lanes where `lanes` index this row's pixels (every buffer has the
-        // image's; the variances and errors two values a pixel).
-        let (depth, vectors, variance, errors) = unsafe {
-            let (v, e) = (
-                f.light_variance.as_ptr().cast::<f32>(),
-                s.errors.as_ptr().cast::<f32>(),
-            );
-            (
-                V::gather(f.depth.as_ptr(), index, 1, lanes),
-                [
-                    gather3(f.normal, index, lanes),
-                    gather3(f.albedo, index, lanes),
-                    gather3(f.texture2, index, lanes),
-                    gather3(f.direct, index, lanes),
-                    gather3(f.indirect, index, lanes),
-                ],
-                [
-                    V::gather(v, index, 2, lanes),
-                    V::gather(v.add(1), index, 2, lanes),
-                ],
-                [
-                    V::gather(e, index, 2, lanes),
-                    V::gather(e.add(1), index, 2, lanes),
-                ],
-            )
-        };
+        let i0 = self.y * w + x0;
+        let [depth] = channels::<V, _, 1>(f.depth, i0, n);
+        let vectors: [[V; 3]; 5] = [
+            channels(f.normal, i0, n),
+            channels(f.albedo, i0, n),
+            channels(f.texture2, i0, n),
+            channels(f.direct, i0, n),
+            channels(f.indirect, i0, n),
+        ];
+        let variance: [V; 2] = channels(f.light_variance, i0, n);
+        let errors: [V; 2] = channels(s.errors, i0, n);
         // `valid_pixel`.
         let mut valid = V::and(lanes, finite(depth));
         for c in vectors.iter().flatten() {

@@ -16,6 +16,7 @@ pub mod config;
 pub mod data_driven;
 mod exp;
 pub mod features;
+mod history;
 mod neighbourhood;
 pub mod rpf;
 mod simd;

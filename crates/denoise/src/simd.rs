@@ -55,12 +55,21 @@ pub trait F32xN:
     /// The lanes' bits shifted left by 23 (an integer operation on the float's bits: a whole
     /// number in the low mantissa bits moves into the exponent).
     fn shl_23(self) -> Self;
+    /// `self * 2^i` for whole numbers `i` in `-126..=127` (exact, as the product of a float
+    /// and a power of two is): the power from its exponent bits ([`F32xN::shl_23`]) and a
+    /// product, or one instruction where the processor has it.
+    #[inline(always)]
+    fn mul_pow2(self, i: Self) -> Self {
+        (i + Self::splat(127.0 + 8_388_608.0)).shl_23() * self
+    }
     fn gt(self, o: Self) -> Self::Mask;
     fn ge(self, o: Self) -> Self::Mask;
     fn ne(self, o: Self) -> Self::Mask;
     fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Some lane is true.
     fn any(m: Self::Mask) -> bool;
+    /// Every lane is true.
+    fn all(m: Self::Mask) -> bool;
     /// `a` where `m`, else `b`.
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
     /// `*base.add(index * stride)` in the lanes where `m`, 0 in the others (not read); the
@@ -69,6 +78,32 @@ pub trait F32xN:
     /// # Safety
     /// Every address of a lane where `m` is readable, and `index * stride` fits an `i32`.
     unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self;
+    /// `*base.add(row * pitch + column)` in the lanes where `m`, 0 in the others (not read);
+    /// `row` and `column` are whole numbers in `0..2^24`.
+    ///
+    /// # Safety
+    /// Every address of a lane where `m` is readable, and `row * pitch + column` fits an
+    /// `i32`.
+    unsafe fn gather_rows(
+        base: *const f32,
+        row: Self,
+        column: Self,
+        pitch: i32,
+        m: Self::Mask,
+    ) -> Self;
+    /// The `K` channels of the `N` records of `K` `f32`s from `p` on (`p[K * j + c]` in lane
+    /// `j` of value `c`): one load per channel and shuffles where the processor has them (for
+    /// `K` 2 and 3), gathers elsewhere.
+    ///
+    /// # Safety
+    /// `p..p + K * N` is readable, and `K * N` fits an `i32`.
+    #[inline(always)]
+    unsafe fn load_interleaved<const K: usize>(p: *const f32) -> [Self; K] {
+        let lane = iota::<Self>();
+        let all = lane.ge(Self::splat(0.0));
+        // SAFETY: the caller's contract.
+        std::array::from_fn(|c| unsafe { Self::gather(p.add(c), lane, K as i32, all) })
+    }
 }
 
 /// The kinds of lanes, narrowest first.
@@ -233,6 +268,44 @@ pub unsafe fn gather3<V: F32xN>(buffer: &[Vec3], index: V, m: V::Mask) -> [V; 3]
     c
 }
 
+/// A pixel's entry of `K` `f32`s and nothing else (for [`channels`]).
+///
+/// # Safety
+/// The type is `K` `f32`s, without padding, aligned as an `f32`.
+pub unsafe trait Floats<const K: usize>: Copy {}
+
+// SAFETY: one `f32`; glam's `Vec2` and `Vec3` are `#[repr(C)]` structs of two and three.
+unsafe impl Floats<1> for f32 {}
+// SAFETY: as above.
+unsafe impl Floats<2> for glam::Vec2 {}
+// SAFETY: as above.
+unsafe impl Floats<3> for Vec3 {}
+// SAFETY: arrays of `f32` have no padding.
+unsafe impl<const K: usize> Floats<K> for [f32; K] {}
+
+/// The `K` channels of `buffer`'s entries `i0..i0 + n` (`n` at most [`F32xN::N`]) in lanes,
+/// 0 in the lanes past `n`: loads and shuffles for a whole group
+/// ([`F32xN::load_interleaved`]), gathers for a row's last one.
+#[inline(always)]
+pub fn channels<V: F32xN, T: Floats<K>, const K: usize>(
+    buffer: &[T],
+    i0: usize,
+    n: usize,
+) -> [V; K] {
+    assert!(n <= V::N && i0 + n <= buffer.len());
+    // SAFETY: entry `i0` is in `buffer` (or its end, with `n` 0).
+    let base = unsafe { buffer.as_ptr().add(i0).cast::<f32>() };
+    if n == V::N {
+        // SAFETY: the `K N` floats from entry `i0` on are in `buffer` (checked above; an
+        // entry is `K` floats: `Floats`).
+        return unsafe { V::load_interleaved::<K>(base) };
+    }
+    let lane = iota::<V>();
+    let valid = V::splat(n as f32).gt(lane);
+    // SAFETY: the lanes where `valid` index entries `0..n` from `i0` on, in `buffer`.
+    std::array::from_fn(|c| unsafe { V::gather(base.add(c), lane, K as i32, valid) })
+}
+
 /// [`pathlight_core::color::luminance`] in lanes (the same products and sums).
 #[inline(always)]
 pub fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
@@ -258,7 +331,7 @@ pub fn exp_neg_in_range<V: F32xN>(x: V) -> V {
     for &c in &EXP2_POLY[1..] {
         p = p.mul_add(f, V::splat(c));
     }
-    (i + V::splat(127.0 + 8_388_608.0)).shl_23() * p
+    p.mul_pow2(i)
 }
 
 /// A plain array: any processor.
@@ -363,6 +436,10 @@ impl F32xN for Portable {
         m.contains(&true)
     }
     #[inline(always)]
+    fn all(m: Self::Mask) -> bool {
+        !m.contains(&false)
+    }
+    #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(std::array::from_fn(|j| if m[j] { a.0[j] } else { b.0[j] }))
     }
@@ -372,6 +449,24 @@ impl F32xN for Portable {
             if m[j] {
                 // SAFETY: the caller's contract.
                 unsafe { *base.offset(index.0[j] as isize * stride as isize) }
+            } else {
+                0.0
+            }
+        }))
+    }
+    #[inline(always)]
+    unsafe fn gather_rows(
+        base: *const f32,
+        row: Self,
+        column: Self,
+        pitch: i32,
+        m: Self::Mask,
+    ) -> Self {
+        Self(std::array::from_fn(|j| {
+            if m[j] {
+                let at = row.0[j] as isize * pitch as isize + column.0[j] as isize;
+                // SAFETY: the caller's contract.
+                unsafe { *base.offset(at) }
             } else {
                 0.0
             }
@@ -474,6 +569,11 @@ impl F32xN for Avx512 {
         ))))
     }
     #[inline(always)]
+    fn mul_pow2(self, i: Self) -> Self {
+        // `vscalefps`: `self * 2^floor(i)`.
+        Self(avx512!(_mm512_scalef_ps(self.0, i.0)))
+    }
+    #[inline(always)]
     fn gt(self, o: Self) -> Self::Mask {
         avx512!(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(self.0, o.0))
     }
@@ -494,6 +594,10 @@ impl F32xN for Avx512 {
         m != 0
     }
     #[inline(always)]
+    fn all(m: Self::Mask) -> bool {
+        m == 0xffff
+    }
+    #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(avx512!(_mm512_mask_blend_ps(m, b.0, a.0)))
     }
@@ -510,7 +614,95 @@ impl F32xN for Avx512 {
             base
         )))
     }
+    #[inline(always)]
+    unsafe fn gather_rows(
+        base: *const f32,
+        row: Self,
+        column: Self,
+        pitch: i32,
+        m: Self::Mask,
+    ) -> Self {
+        let offsets = avx512!(_mm512_add_epi32(
+            _mm512_mullo_epi32(_mm512_cvttps_epi32(row.0), _mm512_set1_epi32(pitch)),
+            _mm512_cvttps_epi32(column.0)
+        ));
+        Self(avx512!(_mm512_mask_i32gather_ps::<4>(
+            _mm512_setzero_ps(),
+            m,
+            offsets,
+            base
+        )))
+    }
+    #[inline(always)]
+    unsafe fn load_interleaved<const K: usize>(p: *const f32) -> [Self; K] {
+        if !(K == 2 || K == 3) {
+            let lane = iota::<Self>();
+            let all = lane.ge(Self::splat(0.0));
+            // SAFETY: the caller's contract.
+            return std::array::from_fn(|c| unsafe { Self::gather(p.add(c), lane, K as i32, all) });
+        }
+        // SAFETY: the caller's contract (`K` registers from `p`).
+        let v: [__m512; K] = std::array::from_fn(|r| unsafe { _mm512_loadu_ps(p.add(16 * r)) });
+        std::array::from_fn(|c| {
+            // Lane j wants element `K j + c` of the `16 K`: register `(K j + c) / 16`. The
+            // first shuffle takes those of registers 0 and 1 (bit 4 of an index picks the
+            // second), a second one those of register 2 into the rest.
+            let [first, second] = &INTERLEAVED[K - 2][c];
+            let pair = avx512!(_mm512_permutex2var_ps(
+                v[0],
+                _mm512_loadu_si512(first.as_ptr().cast()),
+                v[1]
+            ));
+            if K == 2 {
+                return Self(pair);
+            }
+            Self(avx512!(_mm512_permutex2var_ps(
+                pair,
+                _mm512_loadu_si512(second.as_ptr().cast()),
+                v[K - 1]
+            )))
+        })
+    }
 }
+
+/// The indices of [`Avx512::load_interleaved`]'s shuffles for channel `c` of records of `k`
+/// floats: the first (`second` false) takes lane j's element from registers 0 and 1 (index `e +
+/// 16 r` for element `e` of register `r`); the second keeps the first's lanes (index j) but
+/// for those in register 2 (index `16 + e`).
+#[cfg(target_arch = "x86_64")]
+const fn interleaved_indices(k: usize, c: usize, second: bool) -> [i32; 16] {
+    let mut indices = [0; 16];
+    let mut j = 0;
+    while j < 16 {
+        let g = k * j + c;
+        let (r, e) = ((g / 16) as i32, (g % 16) as i32);
+        indices[j] = match (second, r) {
+            (false, 0 | 1) => e + 16 * r,
+            (false, _) => 0,
+            (true, 2) => 16 + e,
+            (true, _) => j as i32,
+        };
+        j += 1;
+    }
+    indices
+}
+
+/// [`interleaved_indices`] of records of 2 and 3 floats, by channel and shuffle.
+#[cfg(target_arch = "x86_64")]
+const INTERLEAVED: [[[[i32; 16]; 2]; 3]; 2] = {
+    let mut t = [[[[0; 16]; 2]; 3]; 2];
+    let mut k = 2;
+    while k <= 3 {
+        let mut c = 0;
+        while c < k {
+            t[k - 2][c][0] = interleaved_indices(k, c, false);
+            t[k - 2][c][1] = interleaved_indices(k, c, true);
+            c += 1;
+        }
+        k += 1;
+    }
+    t
+};
 
 /// One AVX2 register, eight lanes (see the module's safety note).
 #[cfg(target_arch = "x86_64")]
@@ -626,6 +818,10 @@ impl F32xN for Avx2 {
         avx2!(_mm256_movemask_ps(m)) != 0
     }
     #[inline(always)]
+    fn all(m: Self::Mask) -> bool {
+        avx2!(_mm256_movemask_ps(m)) == 0xff
+    }
+    #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(avx2!(_mm256_blendv_ps(b.0, a.0, m)))
     }
@@ -634,6 +830,25 @@ impl F32xN for Avx2 {
         let offsets = avx2!(_mm256_mullo_epi32(
             _mm256_cvttps_epi32(index.0),
             _mm256_set1_epi32(stride)
+        ));
+        Self(avx2!(_mm256_mask_i32gather_ps::<4>(
+            _mm256_setzero_ps(),
+            base,
+            offsets,
+            m
+        )))
+    }
+    #[inline(always)]
+    unsafe fn gather_rows(
+        base: *const f32,
+        row: Self,
+        column: Self,
+        pitch: i32,
+        m: Self::Mask,
+    ) -> Self {
+        let offsets = avx2!(_mm256_add_epi32(
+            _mm256_mullo_epi32(_mm256_cvttps_epi32(row.0), _mm256_set1_epi32(pitch)),
+            _mm256_cvttps_epi32(column.0)
         ));
         Self(avx2!(_mm256_mask_i32gather_ps::<4>(
             _mm256_setzero_ps(),
@@ -697,6 +912,11 @@ mod tests {
                         x
                     }
                 });
+                // Powers of two from 2^-126 to 2^127 (the whole lanes of `a` spread over them).
+                let i = (va * V::splat(16.0)).floor();
+                same(vb.mul_pow2(i), &|x, y| {
+                    y * 2f32.powi((x * 16.0).floor() as i32)
+                });
                 same(V::splat(3.0).shl_23(), &|_, _| {
                     f32::from_bits(3f32.to_bits() << 23)
                 });
@@ -716,6 +936,25 @@ mod tests {
                     }
                 });
                 assert!(V::any(vb.gt(va)) && !V::any(va.gt(V::splat(100.0))));
+                assert!(V::all(va.gt(V::splat(-6.0))) && !V::all(va.gt(V::splat(-4.0))));
+                // Lanes j read row `j % 3`, column `j / 2` of a 3x8 table where `b` is at
+                // least 0; 0 elsewhere.
+                let table: [f32; 24] = std::array::from_fn(|k| k as f32 * 0.5 + 1.0);
+                let rows = iota::<V>() - (iota::<V>() / V::splat(3.0)).floor() * V::splat(3.0);
+                let columns = (iota::<V>() * V::splat(0.5)).floor();
+                // SAFETY: the offsets are at most 2 * 8 + 7 < 24, the table's length.
+                let g = unsafe {
+                    V::gather_rows(table.as_ptr(), rows, columns, 8, vb.ge(V::splat(0.0)))
+                };
+                let g = g.to_array();
+                for j in 0..V::N {
+                    let want = if b[j] >= 0.0 {
+                        table[(j % 3) * 8 + j / 2]
+                    } else {
+                        0.0
+                    };
+                    assert_eq!(g[j], want, "lane {j}");
+                }
                 // Lanes j read `a[15 - j]` where `b` is at least 0, stride 1; 0 elsewhere.
                 let index = V::splat(15.0) - (va - V::splat(-5.0)) / V::splat(0.75);
                 // SAFETY: the indices are 0..16 and `a` has 16 lanes.
@@ -742,6 +981,24 @@ mod tests {
                 for x in [f32::NAN, f32::NEG_INFINITY, -100.0] {
                     assert!(exp_neg(V::splat(x)).to_array()[0] < 1e-37, "e^{x}");
                 }
+                // Records of 2, 3 (shuffles on AVX-512) and 5 floats (gathers) split into
+                // their channels.
+                let records: Vec<f32> = (0..5 * LANES).map(|k| k as f32 * 1.5 - 7.0).collect();
+                fn channels<V: F32xN, const K: usize>(records: &[f32]) {
+                    assert!(records.len() >= K * V::N);
+                    // SAFETY: checked just above.
+                    let c = unsafe { V::load_interleaved::<K>(records.as_ptr()) };
+                    for (k, c) in c.iter().enumerate() {
+                        let c = c.to_array();
+                        for j in 0..LANES {
+                            let want = if j < V::N { records[K * j + k] } else { 0.0 };
+                            assert_eq!(c[j], want, "channel {k} of {K}, lane {j}");
+                        }
+                    }
+                }
+                channels::<V, 2>(&records);
+                channels::<V, 3>(&records);
+                channels::<V, 5>(&records);
             }
         }
         for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {

@@ -60,9 +60,9 @@
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
 //! (holes of 32 pixels), the other stages worked out as the planes are laid out: the features
 //! with the depth gradient (`Features`) and the temporal pass (`Temporal`, the previous frame's
-//! taps gathered from one record per pixel, `State`) in lanes, the spatial variance a function
-//! of the pixel (`spatial_variance`) in the rows with a short history, the output in lanes
-//! (`Output`). The scalar passes here, with their own buffers (`integrate`, `depth_gradient`,
+//! taps loaded from the history's planes, `crate::history`) in lanes, the spatial variance a
+//! function of the pixel (`spatial_variance`) in the rows with a short history, the output in
+//! lanes (`Output`). The scalar passes here, with their own buffers (`integrate`, `depth_gradient`,
 //! `remodulate` of one pixel), are the reference they are tested against and run beyond that
 //! (and for images of 2^24 pixels or more, whose indices an `f32` lane does not hold exactly).
 
@@ -76,9 +76,10 @@ use crate::atrous::{
 };
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
+use crate::history::{History, State, DEPTH, FIELDS, LENGTH, LIGHT, MOMENTS, NORMAL, WEIGHTS2};
 use crate::simd::{
-    dispatch, gather3, iota, load_first, luminance_lanes, max, min, store_first, ByGroups, F32xN,
-    Groups, LANES,
+    channels, dispatch, gather3, iota, load_first, luminance_lanes, max, min, store_first,
+    ByGroups, F32xN, Floats, Groups, LANES,
 };
 use crate::taa::Taa;
 use crate::{simd, FilterError};
@@ -148,9 +149,9 @@ pub struct Svgf {
     /// The history holds direct and indirect light apart (else their sum in the first).
     split: bool,
     /// Last frame's state of each pixel, which the temporal pass reads.
-    state: Vec<State>,
+    state: History,
     /// This frame's, written by the temporal pass and the first a-trous pass.
-    next: Vec<State>,
+    next: History,
     // Scratch of this frame.
     light: Vec<[Vec3; 2]>,
     variance: Vec<[f32; 2]>,
@@ -252,9 +253,9 @@ impl Svgf {
             self.width = f.width;
             self.height = f.height;
             self.split = split;
-            self.state = vec![State::default(); n];
+            self.state.reset(f.width, f.height);
         }
-        self.next.resize(n, State::default());
+        self.next.fit(f.width, f.height);
         let pad = 2usize << iterations.saturating_sub(1);
         let previous = &self.state;
         // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
@@ -268,52 +269,48 @@ impl Svgf {
                 dispatch(isa, ByGroups(Features { f, y, row }));
             });
             // The rows with pixels whose history is short.
-            let rows = self.planes.load_light_rows(&mut self.next, |y, next, row| {
-                let t = Temporal {
-                    f,
-                    previous,
-                    split,
-                    normal_width,
-                    converge,
-                    y,
-                    row,
-                    next,
-                };
-                dispatch(isa, ByGroups(t))
-            });
+            let rows = self
+                .planes
+                .load_light_rows(self.next.planes_mut(), |y, next, row| {
+                    let t = Temporal {
+                        f,
+                        previous,
+                        split,
+                        normal_width,
+                        converge,
+                        y,
+                        row,
+                        next,
+                    };
+                    dispatch(isa, ByGroups(t))
+                });
             // Where the history is short, the variance from the neighbourhood's moments.
             let next = &self.next;
             self.planes.amend_variance(&rows, |i| {
                 short(f, next, i).then(|| spatial_variance(f, next, i))
             });
-            // The history's light: the first pass's (the paper's), or the integrated light
-            // the temporal pass kept where the pixel converges.
-            let keep = |i: usize, s: &mut State, light| {
-                if !keeps_integrated(f, s, i, converge) {
-                    s.light = light;
-                }
-            };
             for i in 0..iterations {
                 self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
                 if i == 0 {
-                    self.planes.put_light(&mut self.next, keep);
+                    self.keep_planes_light(f, converge);
                 }
             }
             if iterations == 0 {
-                self.planes.put_light(&mut self.next, keep);
+                self.keep_planes_light(f, converge);
             }
             self.planes.for_light_rows(out, |y, out, view| {
                 dispatch(isa, ByGroups(Output { f, y, view, out }));
             });
         } else {
             // Temporal accumulation into `light` and `next`.
-            self.light.resize(n, [Vec3::ZERO; 2]);
-            (&mut self.light, &mut self.next)
+            let (light, states): (Vec<_>, Vec<_>) = (0..n)
                 .into_par_iter()
-                .enumerate()
-                .for_each(|(i, (light, s))| {
-                    (*light, *s) = integrate(f, previous, split, normal_width, converge, i)
-                });
+                .map(|i| integrate(f, previous, split, normal_width, converge, i))
+                .unzip();
+            self.light = light;
+            for (i, s) in states.iter().enumerate() {
+                self.next.set(i, s);
+            }
             self.spatial_variance(f, converge);
             self.depth_gradient(f);
             for i in 0..iterations {
@@ -340,14 +337,43 @@ impl Svgf {
         Ok(())
     }
 
-    /// `light` as this frame's history (the scalar passes).
+    /// `light` as this frame's history where it does not keep its integrated light (the
+    /// scalar passes).
     fn keep_light(&mut self, f: &SvgfFrame, converge: bool) {
-        (&mut self.next, &self.light)
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(i, (s, light))| {
-                if !keeps_integrated(f, s, i, converge) {
-                    s.light = *light;
+        for (i, light) in self.light.iter().enumerate() {
+            let mut s = self.next.get(i);
+            if !keeps_integrated(f, s.weights2, i, converge) {
+                s.light = *light;
+                self.next.set(i, &s);
+            }
+        }
+    }
+
+    /// The planes' light as this frame's history where it does not keep its integrated light
+    /// (the paper's: the first a-trous pass's output).
+    fn keep_planes_light(&mut self, f: &SvgfFrame, converge: bool) {
+        let w = f.width;
+        self.planes
+            .for_light_rows(self.next.planes_mut(), |y, next, view| {
+                let (light, rest) = next.split_at_mut(NORMAL * w);
+                let weights2 = &rest[(WEIGHTS2 - NORMAL) * w..][..w];
+                let motion = &f.motion[y * w..][..w];
+                for (p, light) in light[LIGHT * w..][..6 * w].chunks_exact_mut(w).enumerate() {
+                    let (s, k) = (p / 3, p % 3);
+                    if s >= view.signals {
+                        light.fill(0.0);
+                    } else if !converge {
+                        light.copy_from_slice(&view.light(s, k)[..w]);
+                    } else {
+                        let source = &view.light(s, k)[..w];
+                        for (x, l) in light.iter_mut().enumerate() {
+                            *l = if keeps(motion[x], weights2[x]) {
+                                *l
+                            } else {
+                                source[x]
+                            };
+                        }
+                    }
                 }
             });
     }
@@ -362,8 +388,8 @@ impl Svgf {
             *v = if short(f, next, i) {
                 spatial_variance(f, next, i)
             } else {
-                let k = narrowing(f, &next[i], i, converge);
-                variance(next[i].m).map(|v| v * k)
+                let k = narrowing(f, next.field(i, WEIGHTS2), i, converge);
+                variance(next.moments(i)).map(|v| v * k)
             }
         });
     }
@@ -483,24 +509,6 @@ fn remodulate(f: &SvgfFrame, i: usize, light: Vec3) -> Vec3 {
     }
 }
 
-/// What a pixel carries to the next frame's temporal pass, in one record of one cache line (a
-/// reprojected tap reads one line instead of one from each of several arrays).
-#[derive(Debug, Clone, Copy, Default)]
-#[repr(C, align(64))]
-struct State {
-    /// The integrated (after the first a-trous pass) demodulated light.
-    light: [Vec3; 2],
-    /// The integrated luminance moments (first and second, direct and indirect).
-    m: [f32; 4],
-    /// The history's length in frames (0: none).
-    length: f32,
-    depth: f32,
-    normal: Vec3,
-    /// The sum of the squares of the weights of the frames the history's mean holds (1 for
-    /// one frame; `1 / n` for a plain mean of n; [`SvgfParams::converge`]).
-    weights2: f32,
-}
-
 /// The luminance variance of each signal from moments `m`.
 fn variance(m: [f32; 4]) -> [f32; 2] {
     [
@@ -515,7 +523,7 @@ fn variance(m: [f32; 4]) -> [f32; 2] {
 /// first a-trous pass to fill in). `normal_width`: [`SvgfParams::normal_width`].
 fn integrate(
     f: &SvgfFrame,
-    previous: &[State],
+    previous: &History,
     split: bool,
     normal_width: f32,
     converge: bool,
@@ -541,7 +549,7 @@ fn integrate(
             normal: f.normal[i],
             weights2,
         };
-        if keeps_integrated(f, &s, i, converge) {
+        if keeps_integrated(f, s.weights2, i, converge) {
             s.light = light;
         }
         s
@@ -579,7 +587,7 @@ fn integrate(
         if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 || bw.is_nan() || bw <= 0.0 {
             continue;
         }
-        let p = &previous[qy as usize * w + qx as usize];
+        let p = &previous.get(qy as usize * w + qx as usize);
         // (A NaN normal agrees with none.)
         let normal_agrees = if normal_width > 0.0 {
             (p.normal - f.normal[i]).length_squared() <= reach
@@ -638,8 +646,14 @@ fn converges(f: &SvgfFrame, i: usize, converge: bool) -> bool {
 /// pass's: with `converge`, where it is still and took a previous frame's history (the sum
 /// of its squared weights then below 1; a new history, as on a path's first frame, is the
 /// paper's, so a moving camera's frames are the paper's bit for bit).
-fn keeps_integrated(f: &SvgfFrame, s: &State, i: usize, converge: bool) -> bool {
-    converges(f, i, converge) && s.weights2 < 1.0
+fn keeps_integrated(f: &SvgfFrame, weights2: f32, i: usize, converge: bool) -> bool {
+    converge && keeps(f.motion[i], weights2)
+}
+
+/// [`keeps_integrated`] with `converge`, of a pixel whose motion vector is `motion` and
+/// history `weights2`.
+fn keeps(motion: Vec2, weights2: f32) -> bool {
+    motion == Vec2::ZERO && weights2 < 1.0
 }
 
 /// What the luminance test's variance at pixel `i` (whose history is `s`) is multiplied by:
@@ -650,9 +664,9 @@ fn keeps_integrated(f: &SvgfFrame, s: &State, i: usize, converge: bool) -> bool 
 /// sqrt(n)` standard errors of that mean, so the filter fades as the frames accumulate and the
 /// image converges to their mean. (With the ratio itself, the test a constant 12 standard
 /// errors, the still views of `experiments/001-still.toml` converged a little more slowly.)
-fn narrowing(f: &SvgfFrame, s: &State, i: usize, converge: bool) -> f32 {
+fn narrowing(f: &SvgfFrame, weights2: f32, i: usize, converge: bool) -> f32 {
     if converges(f, i, converge) {
-        let k = (s.weights2 * (1.0 / PAPER_WEIGHTS2)).min(1.0);
+        let k = (weights2 * (1.0 / PAPER_WEIGHTS2)).min(1.0);
         k * k
     } else {
         1.0
@@ -660,31 +674,41 @@ fn narrowing(f: &SvgfFrame, s: &State, i: usize, converge: bool) -> f32 {
 }
 
 /// [`integrate`] in lanes, [`F32xN::N`] pixels of row `y` at a time: the integrated light, its
-/// variance and luminance into `row`, the pixels' states into `next` (the row's; their light
-/// left for the first a-trous pass); whether some pixel's history is [`short`]. The same
-/// arithmetic in the same order, so the same numbers; the previous frame's taps are gathers of
+/// variance and luminance into `row`, the pixels' states into `next` (the row's planes of the
+/// history; their light left for the first a-trous pass); whether some pixel's history is
+/// [`short`]. The same arithmetic in the same order, so the same numbers; the previous frame's
+/// taps are loads where the group's lanes take consecutive pixels of one row, else gathers of
 /// the lanes that pass the tests, and a tap no lane takes (a still camera's three others) is
 /// skipped. (No closures here: see `simd::exp_neg`.)
 struct Temporal<'a, 'f> {
     f: &'a SvgfFrame<'f>,
-    previous: &'a [State],
+    previous: &'a History,
     split: bool,
     normal_width: f32,
     converge: bool,
     y: usize,
     row: LightRow<'a>,
-    next: &'a mut [State],
+    next: &'a mut [f32],
 }
 
-/// The record's fields, in `f32`s from its start.
-const LIGHT: usize = std::mem::offset_of!(State, light) / 4;
-const MOMENTS: usize = std::mem::offset_of!(State, m) / 4;
-const LENGTH: usize = std::mem::offset_of!(State, length) / 4;
-const DEPTH: usize = std::mem::offset_of!(State, depth) / 4;
-const NORMAL: usize = std::mem::offset_of!(State, normal) / 4;
-const WEIGHTS2: usize = std::mem::offset_of!(State, weights2) / 4;
-/// A record's size in `f32`s.
-const RECORD: i32 = (std::mem::size_of::<State>() / 4) as i32;
+impl Temporal<'_, '_> {
+    /// Field `k` of the previous frame's history at pixels `(qx, qy)` in the lanes where `m`,
+    /// 0 in the others: one load where the lanes are consecutive pixels of one row (`run`, the
+    /// index of lane 0's field 0 in the planes), else a gather.
+    #[inline(always)]
+    fn field<V: F32xN>(&self, k: usize, qx: V, qy: V, run: Option<usize>, m: V::Mask) -> V {
+        let (planes, w) = (self.previous.planes(), self.f.width);
+        match run {
+            Some(at) => V::select(m, load_first(&planes[at + k * w..]), V::splat(0.0)),
+            // SAFETY: the lanes where `m` index pixels of the previous frame (`qx` in `0..w`,
+            // `qy` in `0..h`, whole numbers): their field `k` is within the planes, whose
+            // `FIELDS` floats a pixel fit an `i32` (the image has under 2^24 pixels).
+            None => unsafe {
+                V::gather_rows(planes.as_ptr().add(k * w), qy, qx, (FIELDS * w) as i32, m)
+            },
+        }
+    }
+}
 
 impl Groups for Temporal<'_, '_> {
     fn width(&self) -> usize {
@@ -702,26 +726,12 @@ impl Groups for Temporal<'_, '_> {
         let (zero, one) = (splat(0.0), splat(1.0));
         let lane = iota::<V>();
         let valid = splat(n as f32).gt(lane);
-        let index = splat(i0 as f32) + lane;
-        // SAFETY: the lanes where `valid` index this row's pixels (every buffer has the
-        // image's).
-        let (albedo, direct, indirect, normal) = unsafe {
-            (
-                gather3(f.albedo, index, valid),
-                gather3(f.direct, index, valid),
-                gather3(f.indirect, index, valid),
-                gather3(f.normal, index, valid),
-            )
-        };
-        // SAFETY: as above.
-        let (depth, mx, my) = unsafe {
-            let motion = f.motion.as_ptr().cast::<f32>();
-            (
-                V::gather(f.depth.as_ptr(), index, 1, valid),
-                V::gather(motion, index, 2, valid),
-                V::gather(motion.add(1), index, 2, valid),
-            )
-        };
+        let albedo: [V; 3] = channels(f.albedo, i0, n);
+        let direct: [V; 3] = channels(f.direct, i0, n);
+        let indirect: [V; 3] = channels(f.indirect, i0, n);
+        let normal: [V; 3] = channels(f.normal, i0, n);
+        let [depth] = channels(f.depth, i0, n);
+        let [mx, my] = channels(f.motion, i0, n);
         // Not passed through (`passes_through`).
         let live = V::and(valid, live_lanes(f, i0, n, depth));
 
@@ -749,7 +759,6 @@ impl Groups for Temporal<'_, '_> {
         let (fx, fy) = (px - fx0, py - fy0);
         let reprojects = V::and(live, finite);
         let signals = if self.split { 2 } else { 1 };
-        let base = self.previous.as_ptr().cast::<f32>();
         // The normal test's largest squared distance (with `normal_width`).
         let reach = if self.normal_width > 0.0 {
             let width = normal_width_lanes(f, x0, self.y, normal, valid);
@@ -778,20 +787,26 @@ impl Groups for Temporal<'_, '_> {
             if !V::any(inside) {
                 continue;
             }
-            let q = qy * splat(w as f32) + qx;
-            // SAFETY (every `field` below): the lanes where `inside` (and so `keep`) index
-            // pixels of the previous frame, which has as many as this one.
-            let (length, pdepth, pnormal) = unsafe {
-                (
-                    field(base, LENGTH, q, inside),
-                    field(base, DEPTH, q, inside),
-                    [
-                        field(base, NORMAL, q, inside),
-                        field(base, NORMAL + 1, q, inside),
-                        field(base, NORMAL + 2, q, inside),
-                    ],
-                )
+            // Every lane inside, at consecutive pixels of one row: loads.
+            let run = if V::all(inside) {
+                let (x, y) = (qx.to_array()[0], qy.to_array()[0]);
+                if V::any(qx.ne(splat(x) + lane)) || V::any(qy.ne(splat(y))) {
+                    None
+                } else {
+                    Some(y as usize * FIELDS * w + x as usize)
+                }
+            } else {
+                None
             };
+            let (length, pdepth) = (
+                self.field(LENGTH, qx, qy, run, inside),
+                self.field(DEPTH, qx, qy, run, inside),
+            );
+            let pnormal = [
+                self.field(NORMAL, qx, qy, run, inside),
+                self.field(NORMAL + 1, qx, qy, run, inside),
+                self.field(NORMAL + 2, qx, qy, run, inside),
+            ];
             let normal_agrees = if self.normal_width > 0.0 {
                 reach.ge(distance2(pnormal, normal))
             } else {
@@ -809,19 +824,16 @@ impl Groups for Temporal<'_, '_> {
             sum_w = sum_w + bw;
             for (s, old) in old.iter_mut().take(signals).enumerate() {
                 for (k, old) in old.iter_mut().enumerate() {
-                    // SAFETY: above.
-                    let l = unsafe { field(base, LIGHT + 3 * s + k, q, keep) };
+                    let l = self.field(LIGHT + 3 * s + k, qx, qy, run, keep);
                     *old = *old + l * bw;
                 }
             }
             for (k, old) in old_m.iter_mut().take(2 * signals).enumerate() {
-                // SAFETY: above.
-                *old = *old + unsafe { field(base, MOMENTS + k, q, keep) } * bw;
+                *old = *old + self.field(MOMENTS + k, qx, qy, run, keep) * bw;
             }
             old_len = old_len + length * bw;
             if self.converge {
-                // SAFETY: above.
-                old_w2 = old_w2 + unsafe { field(base, WEIGHTS2, q, keep) } * bw;
+                old_w2 = old_w2 + self.field(WEIGHTS2, qx, qy, run, keep) * bw;
             }
         }
         let blends = V::and(reprojects, sum_w.ge(splat(1e-3)));
@@ -875,54 +887,36 @@ impl Groups for Temporal<'_, '_> {
             store_first(var, n, &mut self.row.variance(s)[x0..]);
             store_first(luminance_lanes(*light), n, &mut self.row.luminance(s)[x0..]);
         }
-        let ma: [[f32; LANES]; 4] = [
-            m[0].to_array(),
-            m[1].to_array(),
-            m[2].to_array(),
-            m[3].to_array(),
-        ];
-        let la = length.to_array();
-        let wa = weights2.to_array();
-        // Where the pixel keeps its integrated light (`keeps_integrated`), with `converge`
-        // (else the first pass's, filled in later).
-        let mut kept = None;
-        if self.converge {
-            let keeps = V::and(still, one.gt(weights2));
-            let mut k = [[[0.0; LANES]; 3]; 2];
-            for (k, light) in k.iter_mut().zip(&light).take(signals) {
-                for (k, &c) in k.iter_mut().zip(light) {
-                    *k = V::select(keeps, c, zero).to_array();
-                }
+        // The history: the light where the pixel keeps its integrated light
+        // (`keeps_integrated`, with `converge`), else 0 (the first pass's, filled in later).
+        let keeps = V::and(still, one.gt(weights2));
+        for (s, light) in light.iter().enumerate() {
+            for (k, &c) in light.iter().enumerate() {
+                let kept = if self.converge && s < signals {
+                    V::select(keeps, c, zero)
+                } else {
+                    zero
+                };
+                store_first(kept, n, &mut self.next[(LIGHT + 3 * s + k) * w + x0..]);
             }
-            kept = Some(k);
         }
-        for (j, s) in self.next[x0..x0 + n].iter_mut().enumerate() {
-            let at = |c: &[[f32; LANES]; 3]| Vec3::new(c[0][j], c[1][j], c[2][j]);
-            *s = State {
-                light: match &kept {
-                    Some([a, b]) => [at(a), at(b)],
-                    None => [Vec3::ZERO; 2],
-                },
-                m: [ma[0][j], ma[1][j], ma[2][j], ma[3][j]],
-                length: la[j],
-                depth: f.depth[i0 + j],
-                normal: f.normal[i0 + j],
-                weights2: wa[j],
-            };
+        let fields = [
+            (MOMENTS, m[0]),
+            (MOMENTS + 1, m[1]),
+            (MOMENTS + 2, m[2]),
+            (MOMENTS + 3, m[3]),
+            (LENGTH, length),
+            (DEPTH, depth),
+            (NORMAL, normal[0]),
+            (NORMAL + 1, normal[1]),
+            (NORMAL + 2, normal[2]),
+            (WEIGHTS2, weights2),
+        ];
+        for (k, value) in fields {
+            store_first(value, n, &mut self.next[k * w + x0..]);
         }
         V::any(V::and(live, splat(4.0).gt(length)))
     }
-}
-
-/// Field `k` of the records from `base` on at the records `q` in the lanes where `m` (0 in
-/// the others).
-///
-/// # Safety
-/// The records of the lanes where `m` are readable.
-#[inline(always)]
-unsafe fn field<V: F32xN>(base: *const f32, k: usize, q: V, m: V::Mask) -> V {
-    // SAFETY: the caller's.
-    unsafe { V::gather(base.add(k), q, RECORD, m) }
 }
 
 /// The features' planes of row `y` in lanes, [`F32xN::N`] pixels at a time: depth, |grad z|
@@ -949,24 +943,12 @@ impl Groups for Features<'_, '_> {
         let (zero, one) = (splat(0.0), splat(1.0));
         let lane = iota::<V>();
         let valid = splat(n as f32).gt(lane);
-        let [centre, right, left, up, down] = cross(w, h, x0, y);
-        let base = f.depth.as_ptr();
-        // SAFETY: the lanes where `valid` index pixels of the image (`cross`).
-        let (depth, r, l, u, d) = unsafe {
-            (
-                V::gather(base, centre, 1, valid),
-                V::gather(base, right, 1, valid),
-                V::gather(base, left, 1, valid),
-                V::gather(base, up, 1, valid),
-                V::gather(base, down, 1, valid),
-            )
-        };
+        let [[depth], [r], [l], [u], [d]] = neighbours::<V, f32, 1>(f.depth, w, h, x0, y, valid);
         let (dx, dy) = ((r - l) * splat(0.5), (u - d) * splat(0.5));
         let gz = max(dx.abs(), dy.abs());
         let gz = V::select(simd::finite(gz), gz, zero);
         let live = live_lanes(f, y * w + x0, n, depth);
-        // SAFETY: the lanes where `valid` index this row's pixels.
-        let normal = unsafe { gather3(f.normal, centre, valid) };
+        let normal: [V; 3] = channels(f.normal, y * w + x0, n);
         store_first(depth, n, &mut self.row.depth()[x0..]);
         store_first(gz, n, &mut self.row.gradient()[x0..]);
         store_first(V::select(live, zero, one), n, &mut self.row.through()[x0..]);
@@ -1008,8 +990,7 @@ impl Groups for Output<'_, '_> {
             }
         }
         let through = load_first::<V>(&self.view.through()[x0..]).ne(splat(0.0));
-        // SAFETY: the lanes where `valid` index this row's pixels.
-        let albedo = unsafe { gather3(f.albedo, index, valid) };
+        let albedo: [V; 3] = channels(f.albedo, i0, n);
         let mut out = [splat(0.0); 3];
         for ((out, &light), &albedo) in out.iter_mut().zip(&light).zip(&albedo) {
             *out = light * demodulator_lanes(albedo);
@@ -1049,13 +1030,13 @@ fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask
 }
 
 /// Pixel `i`'s history is under 4 frames: its variance comes from its neighbourhood.
-fn short(f: &SvgfFrame, state: &[State], i: usize) -> bool {
-    state[i].length < 4.0 && !passes_through(f, i)
+fn short(f: &SvgfFrame, state: &History, i: usize) -> bool {
+    state.field(i, LENGTH) < 4.0 && !passes_through(f, i)
 }
 
 /// Pixel `i`'s luminance variance of each signal from the moments of its 7x7 neighbourhood
 /// (weighted by depth and normal), for a short history.
-fn spatial_variance(f: &SvgfFrame, state: &[State], i: usize) -> [f32; 2] {
+fn spatial_variance(f: &SvgfFrame, state: &History, i: usize) -> [f32; 2] {
     let (w, h) = (f.width as i64, f.height as i64);
     let (x, y) = ((i as i64) % w, (i as i64) / w);
     let mut sum_w = 0.0;
@@ -1073,14 +1054,14 @@ fn spatial_variance(f: &SvgfFrame, state: &[State], i: usize) -> [f32; 2] {
             }
             let wq = ez.exp() * wn;
             sum_w += wq;
-            for (a, m) in acc.iter_mut().zip(state[q].m) {
+            for (a, m) in acc.iter_mut().zip(state.moments(q)) {
                 *a += m * wq;
             }
         }
     }
     let mean = acc.map(|x| x / sum_w.max(1e-12));
     // Few frames: the spatial estimate, raised as the paper does.
-    let boost = 4.0 / (state[i].length + 1.0).min(4.0);
+    let boost = 4.0 / (state.field(i, LENGTH) + 1.0).min(4.0);
     variance(mean).map(|v| v * boost)
 }
 
@@ -1133,16 +1114,13 @@ fn normal_width_lanes<V: F32xN>(
     normal: [V; 3],
     valid: V::Mask,
 ) -> V {
-    let [_, right, left, up, down] = cross(f.width, f.height, x0, y);
-    // SAFETY: the lanes where `valid` index pixels of the image (`cross`).
-    let (r, l, u, d) = unsafe {
-        (
-            distance2(gather3(f.normal, right, valid), normal),
-            distance2(gather3(f.normal, left, valid), normal),
-            distance2(gather3(f.normal, up, valid), normal),
-            distance2(gather3(f.normal, down, valid), normal),
-        )
-    };
+    let [_, right, left, up, down] = neighbours(f.normal, f.width, f.height, x0, y, valid);
+    let (r, l, u, d) = (
+        distance2(right, normal),
+        distance2(left, normal),
+        distance2(up, normal),
+        distance2(down, normal),
+    );
     let width = (min(r, l) + min(u, d)).sqrt();
     V::select(simd::finite(width), width, V::splat(0.0))
 }
@@ -1163,6 +1141,47 @@ fn cross<V: F32xN>(w: usize, h: usize, x0: usize, y: usize) -> [V; 5] {
     let up = splat(((y + 1).min(h - 1) * w) as f32);
     let down = splat((y.saturating_sub(1) * w) as f32);
     [at + x, at + right, at + left, up + x, down + x]
+}
+
+/// The entries of `buffer` (a `w x h` image) at the pixels of row `y` from `x0` on and at
+/// their neighbours, in the lanes where `valid` (the pixels in the image) and 0 in the
+/// others: `[centre, right, left, up, down]`, as [`cross`] (the neighbours clamped to the
+/// image). Loads and shuffles ([`channels`]) but for the neighbours beside a group at the
+/// image's left or right edge, which are gathered.
+#[inline(always)]
+fn neighbours<V: F32xN, T: Floats<K>, const K: usize>(
+    buffer: &[T],
+    w: usize,
+    h: usize,
+    x0: usize,
+    y: usize,
+    valid: V::Mask,
+) -> [[V; K]; 5] {
+    let n = V::N.min(w - x0);
+    let i0 = y * w + x0;
+    let (up, down) = ((y + 1).min(h - 1) * w + x0, y.saturating_sub(1) * w + x0);
+    let [_, right_index, left_index, _, _] = cross::<V>(w, h, x0, y);
+    let base = buffer.as_ptr().cast::<f32>();
+    // SAFETY (the gathers): the lanes where `valid` index pixels of the image (`cross`), `K`
+    // floats each (`Floats`).
+    let gathered = |index: V| -> [V; K] {
+        std::array::from_fn(|c| unsafe { V::gather(base.add(c), index, K as i32, valid) })
+    };
+    [
+        channels(buffer, i0, n),
+        if x0 + V::N < w {
+            channels(buffer, i0 + 1, V::N)
+        } else {
+            gathered(right_index)
+        },
+        if x0 > 0 && n == V::N {
+            channels(buffer, i0 - 1, V::N)
+        } else {
+            gathered(left_index)
+        },
+        channels(buffer, up, n),
+        channels(buffer, down, n),
+    ]
 }
 
 /// `|a - b|^2` in lanes.

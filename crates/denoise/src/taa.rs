@@ -30,7 +30,8 @@ use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::simd::{
-    self, dispatch, gather3, iota, luminance_lanes, max, min, ByGroups, F32xN, Groups, Isa,
+    self, channels, dispatch, gather3, iota, luminance_lanes, max, min, ByGroups, F32xN, Groups,
+    Isa,
 };
 
 /// The weight of this frame's value in the blend (chosen on the orbits of the Cornell box and
@@ -233,7 +234,6 @@ impl Groups for Blend<'_> {
         let lane = iota::<V>();
         let valid = splat(n as f32).gt(lane);
         let xs = splat(x0 as f32) + lane;
-        let index = splat((y * w) as f32) + xs;
         // The 3x3 box's sums: the rows' sums of the rows around.
         let rows = self.rows.as_ptr().cast::<f32>();
         let mut sums = [zero; 7];
@@ -244,15 +244,8 @@ impl Groups for Blend<'_> {
                 *s = *s + unsafe { V::gather(rows.add(k), q, 7, valid) };
             }
         }
-        // SAFETY: as above (this row's pixels).
-        let (c, mx, my) = unsafe {
-            let motion = self.motion.as_ptr().cast::<f32>();
-            (
-                gather3(self.current, index, valid),
-                V::gather(motion, index, 2, valid),
-                V::gather(motion.add(1), index, 2, valid),
-            )
-        };
+        let c: [V; 3] = channels(self.current, y * w + x0, n);
+        let [mx, my] = channels(self.motion, y * w + x0, n);
         // The history's bilinear value ([`reproject`]).
         let (px, py) = (xs + mx, splat(y as f32) + my);
         let moves = V::and(valid, V::and(simd::finite(px), simd::finite(py)));
