@@ -150,6 +150,14 @@ pub struct FilterConfig {
     /// to the path tracer's image; a pixel that moves is filtered as the paper does
     /// ([`crate::svgf`]).
     pub svgf_converge: bool,
+    /// SVGF: once the camera has been still for this many frames, the data-driven filter of
+    /// the accumulated image (with this configuration's data-driven parameters) takes over
+    /// until it moves again; 0 never (not in the paper). Needs `frame.accumulate`: the frame
+    /// gathers the features' statistics at every frame (from each epoch's first on, as the
+    /// data-driven filter does: its silhouettes against the sky need every sample's), and
+    /// SVGF's history, which stops while the data-driven filter runs, is the still view's
+    /// when the camera moves on.
+    pub svgf_still_handover: u32,
     /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
     /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
@@ -220,6 +228,7 @@ impl Default for FilterConfig {
             svgf_normal_width: 16.0,
             svgf_taa: false,
             svgf_converge: false,
+            svgf_still_handover: 0,
             sigma_direct: 1.25,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -313,6 +322,25 @@ impl FilterConfig {
         self.rpf_params(0).validate()
     }
 
+    /// The filter a frame runs after `still` frames of a still camera (the frames accumulated
+    /// in the epoch, this one included): `method`, or the data-driven filter once SVGF hands
+    /// over (`svgf_still_handover`).
+    pub fn method_after(&self, still: u32) -> Method {
+        match self.method {
+            Method::Svgf if self.svgf_still_handover > 0 && still >= self.svgf_still_handover => {
+                Method::DataDriven
+            }
+            m => m,
+        }
+    }
+
+    /// The frame gathers the features' statistics for the data-driven filter: it may run
+    /// in this epoch.
+    pub fn gathers_features(&self) -> bool {
+        self.method == Method::DataDriven
+            || (self.method == Method::Svgf && self.svgf_still_handover > 0)
+    }
+
     /// SVGF's parameters.
     pub fn svgf_params(&self) -> crate::SvgfParams {
         crate::SvgfParams {
@@ -372,5 +400,22 @@ mod tests {
             assert!(e.contains(field), "{field}: {e}");
         }
         assert!(toml::from_str::<FilterConfig>("kernal = 3").is_err());
+    }
+
+    #[test]
+    fn svgf_hands_over_to_the_data_driven_filter_after_the_still_frames() {
+        let mut c = FilterConfig {
+            method: Method::Svgf,
+            ..FilterConfig::default()
+        };
+        assert!(!c.gathers_features());
+        assert_eq!(c.method_after(1000), Method::Svgf);
+        c.svgf_still_handover = 8;
+        assert!(c.gathers_features());
+        assert_eq!(c.method_after(7), Method::Svgf);
+        assert_eq!(c.method_after(8), Method::DataDriven);
+        c.method = Method::None;
+        assert_eq!(c.method_after(8), Method::None);
+        assert!(!c.gathers_features());
     }
 }

@@ -358,6 +358,8 @@ mod tests {
             .unwrap();
         c.validate().unwrap();
         assert_eq!(c.frame.filter.method, pathlight_denoise::Method::Svgf);
-        assert!(!c.frame.reprojection.enabled && !c.frame.accumulate);
+        assert!(!c.frame.reprojection.enabled);
+        // The still camera's handover to the data-driven filter needs the accumulated image.
+        assert!(c.frame.filter.svgf_still_handover > 0 && c.frame.accumulate);
     }
 }

@@ -167,6 +167,57 @@ fn svgf_brings_single_sample_frames_close_to_the_reference() {
     assert_eq!(filtered, run(1));
 }
 
+/// SVGF hands over to the data-driven filter after `svgf_still_handover` frames of a still
+/// camera: before, its frames are SVGF's bit for bit, from then on the data-driven filter's of
+/// the same accumulated image bit for bit. When the camera moves on, SVGF filters again with
+/// the history it had when it stopped, the still view's: the frame is that of SVGF stopped
+/// after the same still frames and moved the same way, bit for bit.
+#[test]
+fn svgf_hands_over_to_the_data_driven_filter_while_the_camera_is_still() {
+    let world = cornell();
+    let at = |x: f32, method: Method, handover: u32| {
+        let mut c = Config {
+            camera: pathlight_render::config::CameraConfig {
+                look_from: Some([x, 1.0, 3.5]),
+                look_at: Some([x, 1.0, 0.0]),
+                up: Some([0.0, 1.0, 0.0]),
+                fov_y: Some(40.0),
+                ..Default::default()
+            },
+            ..config(method)
+        };
+        c.frame.filter.svgf_still_handover = handover;
+        c
+    };
+    let mut svgf = Pipeline::new(at(0.0, Method::Svgf, 0));
+    let mut data_driven = Pipeline::new(at(0.0, Method::DataDriven, 0));
+    let mut handover = Pipeline::new(at(0.0, Method::Svgf, 4));
+    for frame in 1..=3 {
+        for p in [&mut svgf, &mut data_driven, &mut handover] {
+            p.render_frame(&world);
+        }
+        assert!(handover.image() == svgf.image(), "frame {frame}");
+    }
+    for frame in 4..=6 {
+        for p in [&mut data_driven, &mut handover] {
+            p.render_frame(&world);
+        }
+        assert!(handover.image() == data_driven.image(), "frame {frame}");
+    }
+    // SVGF stopped after the frames before the handover, and both moved the same way.
+    for p in [&mut svgf, &mut handover] {
+        let c = at(
+            0.05,
+            Method::Svgf,
+            p.config().frame.filter.svgf_still_handover,
+        );
+        p.set_config(&c);
+        p.render_frame(&world);
+    }
+    assert!(handover.image() == svgf.image());
+    assert!(handover.image() != data_driven.image());
+}
+
 /// RPF's vectors of a quad under a constant sky, seen from its front: a camera ray that misses
 /// the quad is the sky's; every bounce off the quad leaves the scene, so its second vertex is
 /// a scene's diagonal (here 2 sqrt 2) from the first along the bounce, its normal facing back.

@@ -497,6 +497,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         svgf_normal_width: 4.0,
         svgf_taa: true,
         svgf_converge: true,
+        svgf_still_handover: 1,
         ..Default::default()
     };
     let run = |cfg: &Config| {

@@ -407,8 +407,17 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 "Not in the paper: a pixel that has not moved takes its frames into a plain \
                  mean and its luminance test narrows with the mean's noise",
             );
+        ui.add(
+            egui::Slider::new(&mut f.svgf_still_handover, 0..=64)
+                .text("hand over to data-driven when still (frames; 0 never)"),
+        )
+        .on_hover_text(
+            "Not in the paper: once the camera has been still this many frames, the \
+             data-driven filter (its parameters below) filters the accumulated image until the \
+             camera moves; needs accumulation on",
+        );
     });
-    ui.add_enabled_ui(f.method == Method::DataDriven, |ui| {
+    ui.add_enabled_ui(f.gathers_features(), |ui| {
         let mut radius = f.kernel / 2;
         ui.add(egui::Slider::new(&mut radius, 0..=27).text("kernel radius (width 2r+1)"));
         f.kernel = 2 * radius + 1;

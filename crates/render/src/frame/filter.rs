@@ -40,6 +40,17 @@
 //!   reprojection carries the history's light into a new view but not these statistics: they
 //!   start again from the frame after the move. Switching the filter on mid-epoch starts them
 //!   then (the history is not reset for a post-process).
+//! - **SVGF handing over while still** (`svgf_still_handover`, not in the thesis or SVGF's
+//!   paper): with SVGF, once the camera has been still for that many frames the data-driven
+//!   filter of the accumulated image runs instead, until the camera moves (a new epoch). The
+//!   features' statistics are gathered at every frame, from each epoch's first on, as for
+//!   the data-driven filter (a camera that moves at every frame pays for them too: started at
+//!   the second frame instead, the silhouettes lacked a sample, and on the still views of
+//!   `experiments/001-still.toml` CIELUV MSE at 128 frames was up to 1.5x as high, e.g. the
+//!   Cornell box 0.57x the unfiltered image's against 0.39x). SVGF does not run
+//!   meanwhile: its history stays the still view's, the
+//!   view the next move's motion vectors start from, so it carries on as if those frames had
+//!   not been.
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
@@ -157,15 +168,20 @@ impl Filter {
     /// statistics of `epoch`, starting them afresh for a new epoch.
     pub fn gather(&mut self, epoch: u64, gbuffer: &GBuffer, lighting: &[LightSample]) {
         let n = gbuffer.pixels.len();
-        if self.epoch != Some(epoch) || self.stats.len() != n {
-            self.stats.clear();
+        // A new epoch's statistics start afresh in the same parallel sweep (a camera that
+        // moves at every frame starts one each frame).
+        let fresh = self.epoch != Some(epoch) || self.stats.len() != n;
+        if self.stats.len() != n {
             self.stats.resize(n, FeatureStats::default());
-            self.epoch = Some(epoch);
         }
+        self.epoch = Some(epoch);
         self.stats
             .par_iter_mut()
             .zip(gbuffer.pixels.par_iter().zip(lighting.par_iter()))
             .for_each(|(s, (g, l))| {
+                if fresh {
+                    *s = FeatureStats::default();
+                }
                 if l.stats.n == 0 {
                     return;
                 }
@@ -185,18 +201,20 @@ impl Filter {
             });
     }
 
-    /// Runs the configured filter into [`image`](Self::image): the data-driven filter on the
-    /// history with the gathered features, or the spatio-temporal filter on this frame's
-    /// samples (`lighting`, the history where a pixel took none) with the G-buffer.
+    /// Runs filter `method` with `config`'s parameters into [`image`](Self::image): the
+    /// data-driven filter on the history with the gathered features, or the spatio-temporal
+    /// filter on this frame's samples (`lighting`, the history where a pixel took none) with
+    /// the G-buffer.
     pub fn run(
         &mut self,
+        method: Method,
         config: &FilterConfig,
         history: &[PixelStats],
         gbuffer: &GBuffer,
         lighting: &[LightSample],
     ) -> Result<(), FilterError> {
         let (width, height) = (gbuffer.width as usize, gbuffer.height as usize);
-        match config.method {
+        match method {
             Method::DataDriven => self.run_data_driven(config, history, width, height),
             Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
             Method::None | Method::Rpf => Ok(()),
@@ -440,7 +458,9 @@ mod tests {
             }
             filter.gather(0, &gbuffer, &lighting);
         }
-        filter.run(&config, &history, &gbuffer, &lighting).unwrap();
+        filter
+            .run(config.method, &config, &history, &gbuffer, &lighting)
+            .unwrap();
         (filter.image, w)
     }
 

@@ -603,16 +603,19 @@ impl Pipeline {
             self.previous_camera = self.camera.clone();
         }
         self.frame_number += 1;
-        let method = self.config.frame.filter.method;
+        let filter = &self.config.frame.filter;
+        // (`self.frames` counts this one: the frames of a still camera.)
+        let method = filter.method_after(self.frames);
         if method.in_frame() {
             let t = Instant::now();
             let svgf = method == pathlight_denoise::Method::Svgf;
-            if traced && !svgf {
+            if traced && filter.gathers_features() {
                 self.filter
                     .gather(self.epoch, &self.gbuffer, &self.lighting);
             }
             let run = (traced || !svgf).then(|| {
                 self.filter.run(
+                    method,
                     &self.config.frame.filter,
                     &self.history,
                     &self.gbuffer,
