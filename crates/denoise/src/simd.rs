@@ -77,7 +77,11 @@ pub trait F32xN:
     ///
     /// # Safety
     /// Every address of a lane where `m` is readable, and `index * stride` fits an `i32`.
-    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self;
+    #[inline(always)]
+    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
+        // SAFETY: the caller's contract (rows of `stride`, column 0).
+        unsafe { Self::gather_rows(base, index, Self::splat(0.0), stride, m) }
+    }
     /// `*base.add(row * pitch + column)` in the lanes where `m`, 0 in the others (not read);
     /// `row` and `column` are whole numbers in `0..2^24`.
     ///
@@ -99,11 +103,21 @@ pub trait F32xN:
     /// `p..p + K * N` is readable, and `K * N` fits an `i32`.
     #[inline(always)]
     unsafe fn load_interleaved<const K: usize>(p: *const f32) -> [Self; K] {
-        let lane = iota::<Self>();
-        let all = lane.ge(Self::splat(0.0));
         // SAFETY: the caller's contract.
-        std::array::from_fn(|c| unsafe { Self::gather(p.add(c), lane, K as i32, all) })
+        unsafe { gather_interleaved(p) }
     }
+}
+
+/// [`F32xN::load_interleaved`] by gathers.
+///
+/// # Safety
+/// As [`F32xN::load_interleaved`].
+#[inline(always)]
+unsafe fn gather_interleaved<V: F32xN, const K: usize>(p: *const f32) -> [V; K] {
+    let lane = iota::<V>();
+    let all = lane.ge(V::splat(0.0));
+    // SAFETY: the caller's contract: lane j's channel c is `p[K j + c]`.
+    std::array::from_fn(|c| unsafe { V::gather(p.add(c), lane, K as i32, all) })
 }
 
 /// The kinds of lanes, narrowest first.
@@ -444,17 +458,6 @@ impl F32xN for Portable {
         Self(std::array::from_fn(|j| if m[j] { a.0[j] } else { b.0[j] }))
     }
     #[inline(always)]
-    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
-        Self(std::array::from_fn(|j| {
-            if m[j] {
-                // SAFETY: the caller's contract.
-                unsafe { *base.offset(index.0[j] as isize * stride as isize) }
-            } else {
-                0.0
-            }
-        }))
-    }
-    #[inline(always)]
     unsafe fn gather_rows(
         base: *const f32,
         row: Self,
@@ -602,19 +605,6 @@ impl F32xN for Avx512 {
         Self(avx512!(_mm512_mask_blend_ps(m, b.0, a.0)))
     }
     #[inline(always)]
-    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
-        let offsets = avx512!(_mm512_mullo_epi32(
-            _mm512_cvttps_epi32(index.0),
-            _mm512_set1_epi32(stride)
-        ));
-        Self(avx512!(_mm512_mask_i32gather_ps::<4>(
-            _mm512_setzero_ps(),
-            m,
-            offsets,
-            base
-        )))
-    }
-    #[inline(always)]
     unsafe fn gather_rows(
         base: *const f32,
         row: Self,
@@ -636,10 +626,8 @@ impl F32xN for Avx512 {
     #[inline(always)]
     unsafe fn load_interleaved<const K: usize>(p: *const f32) -> [Self; K] {
         if !(K == 2 || K == 3) {
-            let lane = iota::<Self>();
-            let all = lane.ge(Self::splat(0.0));
             // SAFETY: the caller's contract.
-            return std::array::from_fn(|c| unsafe { Self::gather(p.add(c), lane, K as i32, all) });
+            return unsafe { gather_interleaved(p) };
         }
         // SAFETY: the caller's contract (`K` registers from `p`).
         let v: [__m512; K] = std::array::from_fn(|r| unsafe { _mm512_loadu_ps(p.add(16 * r)) });
@@ -824,19 +812,6 @@ impl F32xN for Avx2 {
     #[inline(always)]
     fn select(m: Self::Mask, a: Self, b: Self) -> Self {
         Self(avx2!(_mm256_blendv_ps(b.0, a.0, m)))
-    }
-    #[inline(always)]
-    unsafe fn gather(base: *const f32, index: Self, stride: i32, m: Self::Mask) -> Self {
-        let offsets = avx2!(_mm256_mullo_epi32(
-            _mm256_cvttps_epi32(index.0),
-            _mm256_set1_epi32(stride)
-        ));
-        Self(avx2!(_mm256_mask_i32gather_ps::<4>(
-            _mm256_setzero_ps(),
-            base,
-            offsets,
-            m
-        )))
     }
     #[inline(always)]
     unsafe fn gather_rows(
