@@ -409,12 +409,12 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             );
         ui.add(
             egui::Slider::new(&mut f.svgf_still_handover, 0..=64)
-                .text("hand over to data-driven when still (frames; 0 never)"),
+                .text("hand over when still (frames)"),
         )
         .on_hover_text(
             "Not in the paper: once the camera has been still this many frames, the \
              data-driven filter (its parameters below) filters the accumulated image until the \
-             camera moves; needs accumulation on",
+             camera moves (0: never); needs accumulation on",
         );
     });
     ui.add_enabled_ui(f.gathers_features(), |ui| {
