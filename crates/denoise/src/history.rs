@@ -110,15 +110,21 @@ impl History {
         }
     }
 
-    /// Sets pixel `i`'s state.
-    pub fn set(&mut self, i: usize, s: &State) {
+    /// Sets pixel `i`'s light.
+    pub fn set_light(&mut self, i: usize, light: &[Vec3; 2]) {
         let (at, w) = (self.at(i), self.width);
-        let mut put = |k: usize, value: f32| self.data[at + k * w] = value;
-        for (c, light) in s.light.iter().enumerate() {
+        for (c, light) in light.iter().enumerate() {
             for (k, &x) in light.to_array().iter().enumerate() {
-                put(LIGHT + 3 * c + k, x);
+                self.data[at + (LIGHT + 3 * c + k) * w] = x;
             }
         }
+    }
+
+    /// Sets pixel `i`'s state.
+    pub fn set(&mut self, i: usize, s: &State) {
+        self.set_light(i, &s.light);
+        let (at, w) = (self.at(i), self.width);
+        let mut put = |k: usize, value: f32| self.data[at + k * w] = value;
         for (k, &m) in s.m.iter().enumerate() {
             put(MOMENTS + k, m);
         }

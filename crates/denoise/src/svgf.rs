@@ -341,10 +341,8 @@ impl Svgf {
     /// scalar passes).
     fn keep_light(&mut self, f: &SvgfFrame, converge: bool) {
         for (i, light) in self.light.iter().enumerate() {
-            let mut s = self.next.get(i);
-            if !keeps_integrated(f, s.weights2, i, converge) {
-                s.light = *light;
-                self.next.set(i, &s);
+            if !keeps_integrated(f, self.next.field(i, WEIGHTS2), i, converge) {
+                self.next.set_light(i, light);
             }
         }
     }
@@ -357,7 +355,6 @@ impl Svgf {
             .for_light_rows(self.next.planes_mut(), |y, next, view| {
                 let (light, rest) = next.split_at_mut(NORMAL * w);
                 let weights2 = &rest[(WEIGHTS2 - NORMAL) * w..][..w];
-                let motion = &f.motion[y * w..][..w];
                 for (p, light) in light[LIGHT * w..][..6 * w].chunks_exact_mut(w).enumerate() {
                     let (s, k) = (p / 3, p % 3);
                     if s >= view.signals {
@@ -367,7 +364,7 @@ impl Svgf {
                     } else {
                         let source = &view.light(s, k)[..w];
                         for (x, l) in light.iter_mut().enumerate() {
-                            *l = if keeps(motion[x], weights2[x]) {
+                            *l = if keeps_integrated(f, weights2[x], y * w + x, converge) {
                                 *l
                             } else {
                                 source[x]
@@ -647,13 +644,7 @@ fn converges(f: &SvgfFrame, i: usize, converge: bool) -> bool {
 /// of its squared weights then below 1; a new history, as on a path's first frame, is the
 /// paper's, so a moving camera's frames are the paper's bit for bit).
 fn keeps_integrated(f: &SvgfFrame, weights2: f32, i: usize, converge: bool) -> bool {
-    converge && keeps(f.motion[i], weights2)
-}
-
-/// [`keeps_integrated`] with `converge`, of a pixel whose motion vector is `motion` and
-/// history `weights2`.
-fn keeps(motion: Vec2, weights2: f32) -> bool {
-    motion == Vec2::ZERO && weights2 < 1.0
+    converges(f, i, converge) && weights2 < 1.0
 }
 
 /// What the luminance test's variance at pixel `i` (whose history is `s`) is multiplied by:
@@ -887,17 +878,15 @@ impl Groups for Temporal<'_, '_> {
             store_first(var, n, &mut self.row.variance(s)[x0..]);
             store_first(luminance_lanes(*light), n, &mut self.row.luminance(s)[x0..]);
         }
-        // The history: the light where the pixel keeps its integrated light
-        // (`keeps_integrated`, with `converge`), else 0 (the first pass's, filled in later).
-        let keeps = V::and(still, one.gt(weights2));
-        for (s, light) in light.iter().enumerate() {
-            for (k, &c) in light.iter().enumerate() {
-                let kept = if self.converge && s < signals {
-                    V::select(keeps, c, zero)
-                } else {
-                    zero
-                };
-                store_first(kept, n, &mut self.next[(LIGHT + 3 * s + k) * w + x0..]);
+        // The history's light where the pixel keeps its integrated light (`keeps_integrated`,
+        // with `converge`); the rest is the first pass's (`Svgf::keep_planes_light`).
+        if self.converge {
+            let keeps = V::and(still, one.gt(weights2));
+            for (s, light) in light.iter().enumerate().take(signals) {
+                for (k, &c) in light.iter().enumerate() {
+                    let kept = V::select(keeps, c, zero);
+                    store_first(kept, n, &mut self.next[(LIGHT + 3 * s + k) * w + x0..]);
+                }
             }
         }
         let fields = [

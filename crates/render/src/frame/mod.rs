@@ -614,13 +614,8 @@ impl Pipeline {
                     .gather(self.epoch, &self.gbuffer, &self.lighting);
             }
             let run = (traced || !svgf).then(|| {
-                self.filter.run(
-                    method,
-                    &self.config.frame.filter,
-                    &self.history,
-                    &self.gbuffer,
-                    &self.lighting,
-                )
+                self.filter
+                    .run(method, filter, &self.history, &self.gbuffer, &self.lighting)
             });
             if let Some(Err(_)) = run {
                 // Not reached: the configuration was validated and the buffers are the
