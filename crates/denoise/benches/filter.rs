@@ -117,7 +117,7 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
         }
     }
     // The filter before 2026-11-26 (the errors' product in the colour test, sigma 4, the
-    // texture2 test), and the narrower lanes where the processor has wider ones (21x21 with
+    // texture2 test), the SURE blend (`sure`, radius 3), and the narrower lanes where the processor has wider ones (21x21 with
     // holes only).
     if kernels.contains(&21) {
         let holes = FilterConfig {
@@ -133,8 +133,13 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
             texture2_test: true,
             ..holes.clone()
         };
+        let sure = FilterConfig {
+            sure: true,
+            ..holes.clone()
+        };
         for (name, config, lanes) in [
             ("product", before, "widest"),
+            ("sure", sure, "widest"),
             ("avx2", holes.clone(), "avx2"),
             ("portable", holes, "portable"),
         ] {

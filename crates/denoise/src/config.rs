@@ -39,6 +39,8 @@
 //!   as its reflection lobe ([`crate::data_driven`]).
 //! - **Silhouettes against the sky** (`sky_coverage`, on): filtered as their hits alone
 //!   (the frame pipeline's `filter` pass).
+//! - **The SURE blend** (`sure`, off; `sure_radius`, 3): in variance units, each pixel's
+//!   filtered light blended with its own by their estimated errors ([`crate::sure`]).
 //! - **Variance scales** `s_f` (depth, normal, texture, direction, texture2) are not published;
 //!   1 each by choice.
 
@@ -201,6 +203,15 @@ pub struct FilterConfig {
     /// added) where the frame knows every sample's sky (one sample per frame); off, or where
     /// it does not, the mixture is filtered with its hits' features (not in the thesis).
     pub sky_coverage: bool,
+    /// Data-driven, variance units: each pixel's filtered light is blended with its own by
+    /// their squared errors, estimated with Stein's unbiased risk estimate (SURE) and averaged
+    /// over the pixel's `(2 sure_radius + 1)^2` neighbourhood, direct and indirect apart: where
+    /// the filter moved the pixel further than its noise explains, its own light takes over
+    /// (not in the thesis).
+    pub sure: bool,
+    /// Data-driven, `sure`: the radius of the neighbourhood the risk estimates are averaged
+    /// over (0: the pixel's own).
+    pub sure_radius: u32,
     /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
     pub rpf_boxes: Vec<u32>,
     /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
@@ -245,6 +256,8 @@ impl Default for FilterConfig {
             error_pair: ErrorPair::Sum,
             sigma_normal_lobe: 1.0,
             sky_coverage: true,
+            sure: false,
+            sure_radius: 3,
             rpf_boxes: vec![55, 35, 17, 7],
             rpf_noise: 0.02,
             rpf_outliers: true,
@@ -256,6 +269,9 @@ impl Default for FilterConfig {
 
 /// Widest window accepted (the thesis tried up to 55).
 pub const MAX_KERNEL: u32 = 127;
+
+/// Widest neighbourhood the SURE blend averages its estimates over (`sure_radius`).
+pub const MAX_SURE_RADIUS: u32 = 32;
 
 impl FilterConfig {
     /// Checks the parameters: an odd kernel of 1..=[`MAX_KERNEL`], positive finite sigmas,
@@ -310,6 +326,20 @@ impl FilterConfig {
                 "frame.filter.sigma_normal_lobe",
                 &self.sigma_normal_lobe,
                 "finite and at least 0",
+            );
+        }
+        if self.sure_radius > MAX_SURE_RADIUS {
+            return bad(
+                "frame.filter.sure_radius",
+                &self.sure_radius,
+                &format!("at most {MAX_SURE_RADIUS}"),
+            );
+        }
+        if self.sure && self.colour_units != ColourUnits::Variance {
+            return bad(
+                "frame.filter.sure",
+                &self.sure,
+                "colour_units = \"variance\" (the risk needs the pixels' standard errors)",
             );
         }
         if let Some(s) = self

@@ -72,6 +72,14 @@
 //!   pixels of its 3x3 neighbourhood, as SVGF blurs its variance (measured: better on the
 //!   refractive box and the interior, worse on the helmet and the garden; BENCHMARKS.md,
 //!   "Seed 001"; an edge-aware blur and one of relative errors did no better).
+//! - **The SURE blend** (`sure`, not in the thesis; off by default): each pixel's filtered
+//!   light is blended with its own by the two lights' squared errors, estimated with Stein's
+//!   unbiased risk estimate and averaged over the pixel's neighbourhood ([`crate::sure`]). A
+//!   filter whose colour test is in standard errors trades variance for a bias of the same
+//!   order, and as samples accumulate it falls behind the unfiltered image (measured on
+//!   `experiments/001-still.toml`: at 128 spp the default filter's CIELUV MSE is 1.05x the
+//!   unfiltered image's on the helmet and 1.30x on the garden); blended, its error stays
+//!   nearer the smaller of the two (BENCHMARKS.md, "Seed 001").
 //! - **Sky and bad pixels.** A pixel whose depth is not finite (the sky) or any of whose inputs
 //!   is not finite (a NaN or infinite sample) is passed through unfiltered and is nobody's
 //!   neighbour, so one bad sample stays in its own pixel. Pixels outside the image are not
@@ -97,6 +105,7 @@ use crate::simd::{
 
 use crate::features::{demodulator, demodulator_lanes, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
 use crate::neighbourhood::{Neighbourhoods, Statistic};
+use crate::sure::{self, Risk};
 use crate::FilterError;
 
 /// Centre pixels filtered together ([`crate::simd`]).
@@ -127,6 +136,11 @@ pub struct DataDriven {
     /// `error_blur`), and the standard error of the mean.
     neighbourhoods: Neighbourhoods,
     errors: Vec<[f32; 2]>,
+    /// `sure`: each pixel's filtered and own light with their estimated errors, and the
+    /// blend's scratch.
+    risks: Vec<Risk>,
+    sure_scratch: sure::Scratch,
+    shares: Vec<[f32; 2]>,
     /// The planes' layout and the image's height (the padding is zero for these).
     layout: Option<(Layout, usize)>,
     /// The widest lanes the filter uses (narrower ones for tests).
@@ -173,6 +187,17 @@ impl DataDriven {
         self.isa = Isa::named(lanes);
     }
 
+    /// With `sure`, each pixel's share of its own light in the last image filtered, direct and
+    /// indirect (NaN where the pixel passed through); empty without.
+    pub fn shares(&self) -> &[[f32; 2]] {
+        &self.shares
+    }
+
+    /// Empties [`shares`](Self::shares) (another filter ran, or none).
+    pub fn forget_shares(&mut self) {
+        self.shares.clear();
+    }
+
     /// Filters `features` with `config`'s data-driven parameters into `out` (one value per
     /// pixel: filtered direct plus filtered indirect light).
     pub fn filter(
@@ -205,20 +230,48 @@ impl DataDriven {
             .map(|(dy, dx)| dy * layout.row + dx)
             .collect();
         let planes = &self.planes;
-        out.par_chunks_mut(features.width)
-            .enumerate()
-            .for_each(|(y, row)| {
-                let job = Row {
-                    planes,
-                    layout,
-                    offsets: &offsets,
-                    scales: &scales,
-                    features,
-                    y,
-                    isa: self.isa,
-                };
-                job.run(row);
-            });
+        // With `sure` the rows leave each valid pixel's light and risks, and the blend writes
+        // it; the centre weighs 1 where it is a tap of its window.
+        let centre = if radius.is_multiple_of(step) {
+            1.0
+        } else {
+            0.0
+        };
+        let sure = config.sure;
+        self.risks
+            .resize(if sure { features.len() } else { 0 }, Risk::default());
+        let width = features.width;
+        let risks = self.risks.par_chunks_mut(width.max(1)).map(Some);
+        let rows = out.par_chunks_mut(width).enumerate();
+        let run = |((y, row), risks): ((usize, &mut [Vec3]), Option<&mut [Risk]>)| {
+            let job = Row {
+                planes,
+                layout,
+                offsets: &offsets,
+                scales: &scales,
+                features,
+                y,
+                isa: self.isa,
+                centre,
+            };
+            job.run(row, risks);
+        };
+        if sure {
+            rows.zip(risks).for_each(run);
+            let demodulate = config.demodulate;
+            sure::blend(
+                &self.risks,
+                width,
+                config.sure_radius as usize,
+                &mut self.sure_scratch,
+                out,
+                &mut self.shares,
+                |i, light| light * divisor(features.albedo[i], demodulate),
+            );
+        } else {
+            self.shares.clear();
+            rows.map(|row| (row, None)).for_each(run);
+        }
         Ok(())
     }
 
@@ -583,6 +636,8 @@ struct Row<'a> {
     y: usize,
     /// The widest lanes to use.
     isa: Isa,
+    /// The centre's own weight in its window: 1, or 0 where the holes skip it (`sure`).
+    centre: f32,
 }
 
 /// A block's centre pixels' values and coefficients, in lanes: `[f32; 16]` arrays while they
@@ -648,22 +703,32 @@ struct Sums<V> {
 struct RowJob<'r, 'a> {
     row: &'r Row<'a>,
     out: &'r mut [Vec3],
+    risks: Option<&'r mut [Risk]>,
 }
 
 impl Kernel<()> for RowJob<'_, '_> {
     #[inline(always)]
     fn run<V: F32xN>(self) {
-        self.row.run_blocks::<V>(self.out)
+        self.row.run_blocks::<V>(self.out, self.risks)
     }
 }
 
 impl Row<'_> {
-    fn run(&self, out: &mut [Vec3]) {
-        dispatch(self.isa, RowJob { row: self, out });
+    /// The row's filtered pixels into `out`; with `risks` (`sure`), each valid pixel's two
+    /// signals and their risks there instead.
+    fn run(&self, out: &mut [Vec3], risks: Option<&mut [Risk]>) {
+        dispatch(
+            self.isa,
+            RowJob {
+                row: self,
+                out,
+                risks,
+            },
+        );
     }
 
     #[inline(always)]
-    fn run_blocks<V: F32xN>(&self, out: &mut [Vec3]) {
+    fn run_blocks<V: F32xN>(&self, out: &mut [Vec3], mut risks: Option<&mut [Risk]>) {
         let width = self.layout.width;
         for x0 in (0..width).step_by(V::N) {
             // The block's pixels, as slices of their length (no bounds checks in the loop).
@@ -682,6 +747,9 @@ impl Row<'_> {
                 for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
                     *o = direct[j] + indirect[j];
                 }
+                if let Some(risks) = risks.as_deref_mut() {
+                    risks[x0..x0 + n].fill(Risk::none());
+                }
                 continue;
             }
             let centre = self.centre(x0);
@@ -691,6 +759,15 @@ impl Row<'_> {
                 (false, false) => self.sums::<V, false, false>(x0, &centre),
                 (false, true) => self.sums::<V, false, true>(x0, &centre),
             };
+            if let Some(risks) = risks.as_deref_mut() {
+                self.risks::<V>(&sums, &centre, valid, &mut risks[x0..x0 + n]);
+                for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
+                    if valid[j] == 0.0 {
+                        *o = direct[j] + indirect[j];
+                    }
+                }
+                continue;
+            }
             // The weighted means, in lanes.
             let mut light = [[0.0; LANES]; 3];
             for (c, light) in light.iter_mut().enumerate() {
@@ -711,6 +788,53 @@ impl Row<'_> {
                     }
                 };
             }
+        }
+    }
+
+    /// The risks of the block's pixels (`sure`): `valid` ones' filtered and own light, the
+    /// others passing through. (No closures here: see `simd::exp_neg`.)
+    #[inline(always)]
+    fn risks<V: F32xN>(
+        &self,
+        sums: &Sums<V>,
+        centre: &Centre<Lanes>,
+        valid: &[f32],
+        risks: &mut [Risk],
+    ) {
+        let mut direct = [[0.0; LANES]; 3];
+        let mut indirect = [[0.0; LANES]; 3];
+        for k in 0..3 {
+            direct[k] = (sums.direct[k] / sums.direct_w).to_array();
+            indirect[k] = (sums.indirect[k] / sums.indirect_w).to_array();
+        }
+        let (wd, wi) = (sums.direct_w.to_array(), sums.indirect_w.to_array());
+        let c = centre;
+        for (j, risk) in risks.iter_mut().enumerate() {
+            if valid[j] == 0.0 {
+                *risk = Risk::none();
+                continue;
+            }
+            // The squared standard errors (or their inverses, `product`) of the colour
+            // scales.
+            let (sd, si) = (c.scale_direct[j], c.scale_indirect[j]);
+            let variance = if self.scales.sum {
+                [sd, si]
+            } else {
+                [1.0 / (sd * sd), 1.0 / (si * si)]
+            };
+            *risk = Risk::new(
+                [
+                    Vec3::new(direct[0][j], direct[1][j], direct[2][j]),
+                    Vec3::new(indirect[0][j], indirect[1][j], indirect[2][j]),
+                ],
+                [
+                    Vec3::new(c.direct[0][j], c.direct[1][j], c.direct[2][j]),
+                    Vec3::new(c.indirect[0][j], c.indirect[1][j], c.indirect[2][j]),
+                ],
+                [wd[j], wi[j]],
+                variance,
+                self.centre,
+            );
         }
     }
 

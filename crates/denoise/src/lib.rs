@@ -20,6 +20,7 @@ mod history;
 mod neighbourhood;
 pub mod rpf;
 mod simd;
+mod sure;
 pub mod svgf;
 pub mod taa;
 

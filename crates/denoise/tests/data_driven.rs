@@ -685,6 +685,24 @@ fn demodulation_keeps_a_texture_under_even_light() {
     assert!(contrast(&blurred) < 0.04, "{}", contrast(&blurred));
 }
 
+/// A flat wall whose direct light steps from 0.4 to 0.6 halfway across (a shadow's edge, no
+/// feature edge), with noise of standard deviation 0.2 per sample averaged over `n` samples
+/// (the standard error given as the light's variance).
+fn shadow_step(w: usize, h: usize, n: f32, seed: u64) -> Frame {
+    let mut rng = Rng::new(seed);
+    let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
+    let error = 0.2 / n.sqrt();
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let light = if x < w / 2 { 0.4 } else { 0.6 };
+            f.direct[i] = Vec3::splat(light + error * rng.normal() as f32);
+            f.light_variance[i] = [error * error, 0.0];
+        }
+    }
+    f
+}
+
 #[test]
 fn variance_units_follow_the_noise() {
     // A flat wall whose light steps from 0.4 to 0.6 halfway (a shadow's edge, no feature edge),
@@ -692,20 +710,7 @@ fn variance_units_follow_the_noise() {
     // units the colour test scales with the standard error: at 4 samples the flat parts are
     // smoothed; at 4096 the step (100 standard errors) is kept where relative units blur it.
     let (w, h) = (64, 32);
-    let image = |n: f32| {
-        let mut rng = Rng::new(5);
-        let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
-        let error = 0.2 / n.sqrt();
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                let light = if x < w / 2 { 0.4 } else { 0.6 };
-                f.direct[i] = Vec3::splat(light + error * rng.normal() as f32);
-                f.light_variance[i] = [error * error, 0.0];
-            }
-        }
-        f
-    };
+    let image = |n: f32| shadow_step(w, h, n, 5);
     let variance = FilterConfig {
         colour_units: ColourUnits::Variance,
         sigma_direct: 3.0,
@@ -863,4 +868,79 @@ fn texture2_noise_refuses_neighbours_only_with_the_thesis_test() {
         with > before / 4.0 && with < before / 2.0,
         "with the test: {with} against {before}"
     );
+}
+
+#[test]
+fn the_sure_blend_keeps_a_step_a_loose_test_blurs_and_still_smooths_noise() {
+    // The wall of `variance_units_follow_the_noise`: light stepping from 0.4 to 0.6 halfway
+    // (a shadow's edge, no feature edge), noise of standard deviation 0.2 per sample over n
+    // samples. With a loose colour test (sigma 30 standard errors) the filter blurs the step
+    // even at 4096 samples (64 standard errors); blended by SURE the pixels by the step take
+    // their own light back, and the flat parts of a 4-sample image are still smoothed.
+    let (w, h) = (64, 32);
+    let image = |n: f32| shadow_step(w, h, n, 7);
+    let loose = FilterConfig {
+        method: Method::DataDriven,
+        colour_units: ColourUnits::Variance,
+        sigma_direct: 30.0,
+        sigma_indirect: 30.0,
+        ..FilterConfig::default()
+    };
+    let sure = FilterConfig {
+        sure: true,
+        sure_radius: 3,
+        ..loose.clone()
+    };
+    let step = |img: &[Vec3]| img[16 * w + w / 2].x - img[16 * w + w / 2 - 1].x;
+    let many = image(4096.0);
+    let blurred = step(&many.filter(&loose));
+    assert!(blurred < 0.15, "without the blend: step {blurred}");
+    let kept = step(&many.filter(&sure));
+    assert!((kept - 0.2).abs() < 0.02, "with the blend: step {kept}");
+    // Every pixel within a few standard errors of the truth.
+    let out = many.filter(&sure);
+    for y in 0..h {
+        for x in 0..w {
+            let truth = if x < w / 2 { 0.4 } else { 0.6 };
+            let e = (out[y * w + x].x - truth).abs();
+            assert!(e < 5.0 * 0.2 / 64.0, "pixel ({x}, {y}) off by {e}");
+        }
+    }
+    let few = image(4.0);
+    let noise = |img: &[Vec3]| spread(img, w, 4..12, 10..18);
+    let (before, loose_noise, after) = (
+        noise(&few.direct),
+        noise(&few.filter(&loose)),
+        noise(&few.filter(&sure)),
+    );
+    // The filter alone takes the noise down 34x; blended, a little of the pixels' own noise
+    // comes back where the estimates' own noise lets a share of it through (7.7x measured
+    // with seed 7).
+    assert!(
+        after < 0.15 * before,
+        "flat part: {after} with the blend, {loose_noise} without, {before} unfiltered"
+    );
+    // The thread count changes nothing.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let one = pool.install(|| many.filter(&sure));
+    assert_eq!(one, out);
+    // The blend needs standard errors, and a bounded neighbourhood.
+    let mut filter = DataDriven::new();
+    let mut o = vec![Vec3::ZERO; w * h];
+    for bad in [
+        FilterConfig {
+            colour_units: ColourUnits::Relative,
+            ..sure.clone()
+        },
+        FilterConfig {
+            sure_radius: 1000,
+            ..sure.clone()
+        },
+    ] {
+        let err = filter.filter(&many.features(), &bad, &mut o).unwrap_err();
+        assert!(matches!(err, FilterError::Parameter { .. }), "{err}");
+    }
 }

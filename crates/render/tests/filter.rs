@@ -133,6 +133,67 @@ fn the_filtered_image_does_not_depend_on_the_thread_count() {
     assert_eq!(one, image(3));
 }
 
+/// The data-driven filter's SURE blend (`sure`) on a converging still view: with a colour test
+/// far too loose (sigma 30 standard errors) the filter blurs the box's shading at 64 samples,
+/// and the blend takes each pixel's own light back where the filter moved it further than its
+/// noise explains: the image comes closer to the reference path tracer's. The shares it shows
+/// (`sure-share`) are in [0, 1], and are forgotten when the filter stops.
+#[test]
+fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
+    let world = cornell();
+    let mut loose = config(Method::DataDriven);
+    loose.frame.filter.sigma_direct = 30.0;
+    loose.frame.filter.sigma_indirect = 30.0;
+    let mut sure = loose.clone();
+    sure.frame.filter.sure = true;
+    let (blurred, blended) = (frames(&world, &loose, 64), frames(&world, &sure, 64));
+    let plain = frames(&world, &config(Method::None), 64);
+    let reference = render(
+        &world,
+        &world.camera(&loose),
+        &Config {
+            spp: 1024,
+            ..loose.clone()
+        },
+    );
+    let reference: Vec<glam::Vec3> = reference.pixels.iter().map(|p| p.mean).collect();
+    let (unfiltered, before, after) = (
+        relmse(&plain.image(), &reference),
+        relmse(&blurred.image(), &reference),
+        relmse(&blended.image(), &reference),
+    );
+    assert!(
+        before > unfiltered && after < 0.8 * before,
+        "relMSE {after:.3e} blended, {before:.3e} without, {unfiltered:.3e} unfiltered"
+    );
+    let n = 64 * 48;
+    assert!(blurred.filter.shares().is_empty());
+    assert_eq!(blended.filter.shares().len(), n);
+    let mut valid = 0;
+    for i in 0..n {
+        let v = blended.sources().value(DisplayMode::SureShare, i);
+        if v.x.is_nan() {
+            continue;
+        }
+        valid += 1;
+        assert!(
+            (0.0..=1.0).contains(&v.x) && (0.0..=1.0).contains(&v.y),
+            "{v}"
+        );
+    }
+    assert!(valid > n / 2, "{valid} blended pixels");
+    let mut p = blended;
+    let mut off = sure.clone();
+    off.frame.filter.method = Method::None;
+    p.set_config(&off);
+    p.render_frame(&world);
+    assert!(p.filter.shares().is_empty());
+    assert_eq!(
+        p.sources().value(DisplayMode::SureShare, 0),
+        glam::Vec3::splat(-1.0)
+    );
+}
+
 /// The spatio-temporal filter on single-sample frames of a still camera (no accumulation: each
 /// frame stands alone): its history makes the 16th frame far closer to the reference than the
 /// frame's own sample, and its image does not depend on the thread count.

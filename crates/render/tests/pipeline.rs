@@ -235,6 +235,7 @@ fn every_display_mode_shows_the_box() {
                 | DisplayMode::VarianceTexture
                 | DisplayMode::VarianceDirection
                 | DisplayMode::VarianceTexture2
+                | DisplayMode::SureShare
         );
         // Roughness: the walls' 1 and the open front's sky.
         let least = if mode == DisplayMode::Roughness { 2 } else { 4 };

@@ -498,6 +498,8 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         svgf_taa: true,
         svgf_converge: true,
         svgf_still_handover: 1,
+        sure: true,
+        sure_radius: 5,
         ..Default::default()
     };
     let run = |cfg: &Config| {

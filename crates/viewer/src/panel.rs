@@ -486,5 +486,17 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 "standard errors over the 3x3 surface (not in the thesis)",
             ),
         );
+        ui.add_enabled_ui(f.colour_units == ColourUnits::Variance, |ui| {
+            ui.checkbox(&mut f.sure, "blend with own light by SURE")
+                .on_hover_text(
+                    "each pixel's filtered light blended with its own by their errors \
+                     estimated with Stein's unbiased risk estimate (not in the thesis; the \
+                     display mode sure-share shows the blend)",
+                );
+            ui.add_enabled(
+                f.sure,
+                egui::Slider::new(&mut f.sure_radius, 0..=8).text("SURE radius"),
+            );
+        });
     });
 }

@@ -82,11 +82,15 @@ pub enum DisplayMode {
     VarianceDirection,
     /// Filter: the variance of texture2, heat map 0 to 1.
     VarianceTexture2,
+    /// Data-driven filter, `sure`: each pixel's share of its own (unfiltered) light in the
+    /// blend, direct light in red and indirect in green, 0 to 1 (blue where the pixel passed
+    /// through; dark grey when the blend did not run).
+    SureShare,
 }
 
 impl DisplayMode {
     /// Every mode with its pass, in menu order.
-    pub const ALL: [DisplayMode; 26] = [
+    pub const ALL: [DisplayMode; 27] = [
         DisplayMode::Final,
         DisplayMode::Accumulated,
         DisplayMode::Noisy,
@@ -113,6 +117,7 @@ impl DisplayMode {
         DisplayMode::VarianceTexture,
         DisplayMode::VarianceDirection,
         DisplayMode::VarianceTexture2,
+        DisplayMode::SureShare,
     ];
 
     /// The name in configurations and on the command line.
@@ -144,6 +149,7 @@ impl DisplayMode {
             DisplayMode::VarianceTexture => "variance-texture",
             DisplayMode::VarianceDirection => "variance-direction",
             DisplayMode::VarianceTexture2 => "variance-texture2",
+            DisplayMode::SureShare => "sure-share",
         }
     }
 
@@ -153,7 +159,7 @@ impl DisplayMode {
         match self {
             Accumulated | Direct | Indirect | Variance | Samples | Probability => super::ACCUMULATE,
             Final | VarianceDepth | VarianceNormal | VarianceTexture | VarianceDirection
-            | VarianceTexture2 => super::FILTER,
+            | VarianceTexture2 | SureShare => super::FILTER,
             Reprojected | Rejection => super::REPROJECT,
             Noisy | FrameDirect | BounceAlbedo | BounceDirection => super::LIGHTING,
             ReservoirM | ReservoirWeight => super::RESTIR,
@@ -204,6 +210,9 @@ pub struct Sources<'a> {
     /// The feature variances the filter read (empty when it is off): depth, normal, texture,
     /// direction, texture2.
     pub feature_variance: &'a [[f32; 5]],
+    /// The data-driven filter's `sure` shares of each pixel's own light, direct and indirect
+    /// (empty when the blend did not run; NaN where the pixel passed through).
+    pub sure_shares: &'a [[f32; 2]],
 }
 
 impl Sources<'_> {
@@ -260,6 +269,11 @@ impl Sources<'_> {
             DisplayMode::VarianceTexture => feature_variance(2),
             DisplayMode::VarianceDirection => feature_variance(3),
             DisplayMode::VarianceTexture2 => feature_variance(4),
+            // -1 when the blend did not run.
+            DisplayMode::SureShare => self
+                .sure_shares
+                .get(i)
+                .map_or(Vec3::splat(-1.0), |s| Vec3::new(s[0], s[1], 0.0)),
         }
     }
 
@@ -349,6 +363,16 @@ impl Sources<'_> {
                     [40, 40, 40]
                 } else {
                     viridis(v.min(1.0))
+                }
+            }),
+            DisplayMode::SureShare => fill(out, |i| {
+                let v = self.value(mode, i);
+                if v.x < 0.0 {
+                    [40, 40, 40]
+                } else if v.x.is_nan() {
+                    [0, 0, 160]
+                } else {
+                    unorm8(v)
                 }
             }),
             DisplayMode::ReservoirM => {

@@ -214,6 +214,9 @@ impl Filter {
         lighting: &[LightSample],
     ) -> Result<(), FilterError> {
         let (width, height) = (gbuffer.width as usize, gbuffer.height as usize);
+        if method != Method::DataDriven {
+            self.data_driven.forget_shares();
+        }
         match method {
             Method::DataDriven => self.run_data_driven(config, history, width, height),
             Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
@@ -388,8 +391,15 @@ impl Filter {
         self.depth.resize(n, 0.0);
     }
 
+    /// Data-driven, `sure`: each pixel's share of its own light in the last image, direct and
+    /// indirect (NaN where it passed through; empty when the blend did not run).
+    pub fn shares(&self) -> &[[f32; 2]] {
+        self.data_driven.shares()
+    }
+
     /// Forgets the output (the filter was switched off).
     pub fn clear(&mut self) {
+        self.data_driven.forget_shares();
         self.svgf.reset();
         self.image.clear();
         self.variance.clear();

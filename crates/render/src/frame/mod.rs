@@ -693,6 +693,7 @@ impl Pipeline {
             reservoirs: self.restir.shaded(),
             filtered: &self.filter.image,
             feature_variance: &self.filter.variance,
+            sure_shares: self.filter.shares(),
         }
     }
 
