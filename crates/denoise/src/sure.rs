@@ -48,9 +48,11 @@ use rayon::prelude::*;
 pub(crate) struct Risk {
     pub filtered: [Vec3; 2],
     pub own: [Vec3; 2],
-    /// SURE of the filtered light of each signal, then of its own light of each; NaN for a
-    /// pixel that is nobody's neighbour (the sky, a bad pixel).
+    /// SURE of the filtered light of each signal, then of its own light of each.
     pub estimates: [f32; 4],
+    /// The pixel passes through (the sky, a bad pixel): it is nobody's neighbour and keeps its
+    /// light.
+    pub passes: bool,
 }
 
 impl Risk {
@@ -75,15 +77,22 @@ impl Risk {
             filtered,
             own,
             estimates,
+            passes: false,
         }
     }
 
     /// A pixel that passes through.
     pub fn none() -> Self {
         Self {
-            estimates: [f32::NAN; 4],
+            passes: true,
             ..Default::default()
         }
+    }
+
+    /// The pixel counts in its neighbours' means: it does not pass through, and its estimates
+    /// are numbers (a light so large that its square overflows counts for nothing).
+    fn counts(&self) -> bool {
+        !self.passes && self.estimates.iter().all(|e| e.is_finite())
     }
 
     /// The blended light (demodulated) from the neighbourhood's mean estimates `mean`, and
@@ -107,7 +116,8 @@ impl Risk {
 }
 
 /// Per pixel, what its neighbourhood sums: the four estimates, the squares of the two
-/// filtered ones, and 1 (the count); zeros for a pixel that passes through.
+/// filtered ones, and 1 (the count); zeros for a pixel that does not count
+/// ([`Risk::counts`]).
 const TERMS: usize = 7;
 const COUNT: usize = 6;
 
@@ -127,8 +137,8 @@ fn add(acc: &mut [f32], add: &[f32]) {
     }
 }
 
-/// Blends every valid pixel of a `width`-wide image of `risks` (sky and bad pixels:
-/// estimates NaN, left alone in `out`) by the mean estimates over its `(2 radius + 1)^2`
+/// Blends every valid pixel of a `width`-wide image of `risks` (sky and bad pixels pass
+/// through: left alone in `out`) by the mean estimates over its `(2 radius + 1)^2`
 /// neighbourhood: `out[i]` becomes `finish(i, light)` of its blended light (demodulated), and
 /// `shares[i]` each signal's share of its own light (NaN for the others). The sums run over
 /// whole rows of terms (rows, then columns), in the same order whatever the thread count.
@@ -160,7 +170,7 @@ pub(crate) fn blend(
             pad.fill(0.0);
             for (t, r) in body.chunks_exact_mut(TERMS).zip(risks) {
                 let e = r.estimates;
-                *<&mut [f32; TERMS]>::try_from(t).expect("a pixel's terms") = if e[0].is_finite() {
+                *<&mut [f32; TERMS]>::try_from(t).expect("a pixel's terms") = if r.counts() {
                     [e[0], e[1], e[2], e[3], e[0] * e[0], e[1] * e[1], 1.0]
                 } else {
                     [0.0; TERMS]
@@ -195,10 +205,11 @@ pub(crate) fn blend(
                 .enumerate()
             {
                 let r = &risks[x];
-                if !r.estimates[0].is_finite() {
+                if r.passes {
                     continue;
                 }
-                // At least the pixel itself counts.
+                // Where no pixel of the neighbourhood counts (n = 0), the means are not
+                // numbers, and the pixel keeps its filtered light (`Risk::blend`).
                 let n = s[COUNT];
                 let mut mean: [f32; 4] = std::array::from_fn(|k| s[k] / n);
                 // The filtered light's estimates less their standard error over the
@@ -289,5 +300,22 @@ mod tests {
         // The indirect light was not moved: its estimates are under their noise, and the
         // filtered light stays.
         assert_eq!(shares[1][1], 0.0);
+        // A pixel whose estimates are not numbers counts for nothing and keeps its filtered
+        // light; so does one without any neighbour that counts.
+        let mut huge = moved(1.0);
+        huge.estimates[0] = f32::INFINITY;
+        let risks = [huge, moved(1.2)];
+        let mut out = [sky; 2];
+        blend(
+            &risks,
+            2,
+            0,
+            &mut Scratch::default(),
+            &mut out,
+            &mut shares,
+            |_, l| l,
+        );
+        assert_eq!(out[0], Vec3::new(1.0, 1.0, 1.0), "{}", out[0]);
+        assert_eq!(shares[0], [0.0, 0.0]);
     }
 }

@@ -927,9 +927,16 @@ fn the_sure_blend_keeps_a_step_a_loose_test_blurs_and_still_smooths_noise() {
         .unwrap();
     let one = pool.install(|| many.filter(&sure));
     assert_eq!(one, out);
-    // The blend needs standard errors, and a bounded neighbourhood.
+    // A pixel whose variance is finite but so large that its estimates are not numbers
+    // (`-v + 2 v / W`) counts for nothing and keeps its filtered light: every pixel is
+    // written, and finite.
+    let mut hostile = many.clone();
+    hostile.light_variance[5 * w + 5] = [1e38, 0.0];
     let mut filter = DataDriven::new();
-    let mut o = vec![Vec3::ZERO; w * h];
+    let mut o = vec![Vec3::NAN; w * h];
+    filter.filter(&hostile.features(), &sure, &mut o).unwrap();
+    assert!(o.iter().all(|v| v.is_finite()));
+    // The blend needs standard errors, and a bounded neighbourhood.
     for bad in [
         FilterConfig {
             colour_units: ColourUnits::Relative,
