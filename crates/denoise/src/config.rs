@@ -155,8 +155,10 @@ pub struct FilterConfig {
     /// SVGF: once the camera has been still for this many frames, the data-driven filter of
     /// the accumulated image (with this configuration's data-driven parameters) takes over
     /// until it moves again; 0 never (not in the paper). Needs `frame.accumulate`: the frame
-    /// gathers the features' statistics at every frame (from each epoch's first on, as the
-    /// data-driven filter does: its silhouettes against the sky need every sample's), and
+    /// gathers the features' statistics of every frame of a still camera (from each epoch's
+    /// first on, as the data-driven filter does: its silhouettes against the sky need every
+    /// sample's; the first is gathered by the second frame, so a camera that moves at every
+    /// frame gathers none), and
     /// SVGF's history, which stops while the data-driven filter runs, is the still view's
     /// when the camera moves on.
     pub svgf_still_handover: u32,

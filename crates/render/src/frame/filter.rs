@@ -43,11 +43,13 @@
 //! - **SVGF handing over while still** (`svgf_still_handover`, not in the thesis or SVGF's
 //!   paper): with SVGF, once the camera has been still for that many frames the data-driven
 //!   filter of the accumulated image runs instead, until the camera moves (a new epoch). The
-//!   features' statistics are gathered at every frame, from each epoch's first on, as for
-//!   the data-driven filter (a camera that moves at every frame pays for them too: started at
-//!   the second frame instead, the silhouettes lacked a sample, and on the still views of
-//!   `experiments/001-still.toml` CIELUV MSE at 128 frames was up to 1.5x as high, e.g. the
-//!   Cornell box 0.57x the unfiltered image's against 0.39x). SVGF does not run
+//!   features' statistics hold every frame of the epoch, from its first on, as for the
+//!   data-driven filter (started at the second frame instead, the silhouettes lacked a
+//!   sample, and on the still views of `experiments/001-still.toml` CIELUV MSE at 128
+//!   frames was up to 1.5x as high, e.g. the Cornell box 0.57x the unfiltered image's against
+//!   0.39x). The epoch's first frame is gathered by the second, from the buffers it left
+//!   (the frame pipeline keeps them), so that a camera that moves at every frame gathers
+//!   nothing; the statistics are the same, bit for bit. SVGF does not run
 //!   meanwhile: its history stays the still view's, the
 //!   view the next move's motion vectors start from, so it carries on as if those frames had
 //!   not been.

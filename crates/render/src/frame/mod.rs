@@ -185,6 +185,13 @@ pub struct Pipeline {
     after_move: bool,
     /// This epoch began with a reprojection (its pixels without history are holes).
     carried: bool,
+    /// SVGF with `svgf_still_handover`: an epoch's first frame leaves its G-buffer and
+    /// lighting for the features' statistics to the next frame, which gathers them only if
+    /// it continues the epoch (the camera stayed); a camera that moves at every frame then
+    /// gathers nothing. The epoch whose first frame waits, and the spare buffers the next
+    /// frame traces into meanwhile (with the epoch of the frame they then hold).
+    deferred: Option<u64>,
+    spare: (GBuffer, Vec<LightSample>, Option<u64>),
 }
 
 /// Why a frame starts a new epoch.
@@ -220,6 +227,8 @@ impl Pipeline {
             reset: Some(Reset::Settings),
             after_move: false,
             carried: false,
+            deferred: None,
+            spare: (GBuffer::default(), Vec::new(), None),
         }
     }
 
@@ -489,6 +498,16 @@ impl Pipeline {
             } else {
                 samples = spp as u64 * pixels;
                 let index = self.frames.saturating_mul(spp);
+                if let Some(epoch) = self.deferred.take() {
+                    // The waiting frame's buffers become the spare ones; this frame traces
+                    // into the others (every pixel of them).
+                    let (g, l, held) = &mut self.spare;
+                    std::mem::swap(&mut self.gbuffer, g);
+                    std::mem::swap(&mut self.lighting, l);
+                    *held = Some(epoch);
+                    self.gbuffer.resize(g.width, g.height);
+                    self.lighting.resize(l.len(), LightSample::default());
+                }
                 trace(
                     &mut self.gbuffer,
                     &mut self.lighting,
@@ -610,8 +629,19 @@ impl Pipeline {
             let t = Instant::now();
             let svgf = method == pathlight_denoise::Method::Svgf;
             if traced && filter.gathers_features() {
-                self.filter
-                    .gather(self.epoch, &self.gbuffer, &self.lighting);
+                // The epoch's first frame, if it waited, before this one (the statistics
+                // are then those of gathering every frame, bit for bit).
+                let (g, l, held) = &mut self.spare;
+                if held.take() == Some(self.epoch) {
+                    self.filter.gather(self.epoch, g, l);
+                }
+                let uniform = !(techniques || self.config.frame.restir.enabled);
+                if svgf && self.frames == 1 && uniform {
+                    self.deferred = Some(self.epoch);
+                } else {
+                    self.filter
+                        .gather(self.epoch, &self.gbuffer, &self.lighting);
+                }
             }
             let run = (traced || !svgf).then(|| {
                 self.filter
@@ -628,6 +658,7 @@ impl Pipeline {
             });
         } else if !self.filter.image.is_empty() {
             self.filter.clear();
+            (self.deferred, self.spare.2) = (None, None);
         }
         let spp = if techniques {
             let total: u64 = self.history.par_iter().map(|h| h.n as u64).sum();
@@ -669,8 +700,9 @@ impl Pipeline {
     /// their scratch).
     pub fn bytes(&self) -> (usize, usize) {
         use std::mem::size_of;
-        let plain = self.gbuffer.pixels.capacity() * size_of::<GPixel>()
-            + self.lighting.capacity() * size_of::<LightSample>()
+        let plain = (self.gbuffer.pixels.capacity() + self.spare.0.pixels.capacity())
+            * size_of::<GPixel>()
+            + (self.lighting.capacity() + self.spare.1.capacity()) * size_of::<LightSample>()
             + self.history.capacity() * size_of::<PixelStats>()
             + self.rgba.capacity();
         let techniques = self.adaptive.probability.capacity() * size_of::<f32>()
