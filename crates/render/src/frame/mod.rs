@@ -696,13 +696,13 @@ impl Pipeline {
     }
 
     /// Bytes the pipeline's per-pixel buffers hold: the plain pipeline's (G-buffer,
-    /// lighting, history, display) and seed 000's techniques' (probabilities, states and
-    /// their scratch).
+    /// lighting, history, display) and the techniques' (seed 000's probabilities, states and
+    /// their scratch, seed 004's reservoirs, seed 001's filters and the spare G-buffer and
+    /// lighting of SVGF's handover).
     pub fn bytes(&self) -> (usize, usize) {
         use std::mem::size_of;
-        let plain = (self.gbuffer.pixels.capacity() + self.spare.0.pixels.capacity())
-            * size_of::<GPixel>()
-            + (self.lighting.capacity() + self.spare.1.capacity()) * size_of::<LightSample>()
+        let plain = self.gbuffer.pixels.capacity() * size_of::<GPixel>()
+            + self.lighting.capacity() * size_of::<LightSample>()
             + self.history.capacity() * size_of::<PixelStats>()
             + self.rgba.capacity();
         let techniques = self.adaptive.probability.capacity() * size_of::<f32>()
@@ -710,7 +710,9 @@ impl Pipeline {
             + self.restir.bytes()
             + self.filter.bytes()
             + self.repair.bytes()
-            + self.hits.iter().map(|r| r.capacity()).sum::<usize>() * size_of::<PrimaryHit>();
+            + self.hits.iter().map(|r| r.capacity()).sum::<usize>() * size_of::<PrimaryHit>()
+            + self.spare.0.pixels.capacity() * size_of::<GPixel>()
+            + self.spare.1.capacity() * size_of::<LightSample>();
         (plain, techniques)
     }
 
