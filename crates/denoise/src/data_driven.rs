@@ -259,6 +259,15 @@ impl DataDriven {
         if sure {
             rows.zip(risks).for_each(run);
             let demodulate = config.demodulate;
+            // A pixel's own light, demodulated: its planes' direct and indirect light.
+            let own = |i: usize| {
+                let at = layout.at(i % width, i / width);
+                let light = |p: usize| {
+                    let c = |k: usize| planes[at + (p + k) * layout.pitch];
+                    Vec3::new(c(0), c(1), c(2))
+                };
+                [light(F0), light(F1)]
+            };
             sure::blend(
                 &self.risks,
                 width,
@@ -266,6 +275,7 @@ impl DataDriven {
                 &mut self.sure_scratch,
                 out,
                 &mut self.shares,
+                own,
                 |i, light| light * divisor(features.albedo[i], demodulate),
             );
         } else {
@@ -791,8 +801,8 @@ impl Row<'_> {
         }
     }
 
-    /// The risks of the block's pixels (`sure`): `valid` ones' filtered and own light, the
-    /// others passing through. (No closures here: see `simd::exp_neg`.)
+    /// The risks of the block's pixels (`sure`): `valid` ones' filtered light and estimates,
+    /// the others passing through. (No closures here: see `simd::exp_neg`.)
     #[inline(always)]
     fn risks<V: F32xN>(
         &self,

@@ -42,12 +42,11 @@ use glam::Vec3;
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-/// A pixel's two signals as the window left them: filtered and its own light (demodulated),
-/// and the squared errors' estimates, direct and indirect.
+/// A pixel's two signals as the window left them: the filtered light (demodulated) and the
+/// squared errors' estimates, direct and indirect (its own light is the filter's input).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Risk {
     pub filtered: [Vec3; 2],
-    pub own: [Vec3; 2],
     /// SURE of the filtered light of each signal, then of its own light of each.
     pub estimates: [f32; 4],
     /// The pixel passes through (the sky, a bad pixel): it is nobody's neighbour and keeps its
@@ -75,7 +74,6 @@ impl Risk {
         }
         Self {
             filtered,
-            own,
             estimates,
             passes: false,
         }
@@ -95,9 +93,9 @@ impl Risk {
         !self.passes && self.estimates.iter().all(|e| e.is_finite())
     }
 
-    /// The blended light (demodulated) from the neighbourhood's mean estimates `mean`, and
-    /// each signal's share of the pixel's own light in it.
-    fn blend(&self, mean: [f32; 4]) -> (Vec3, [f32; 2]) {
+    /// The blended light (demodulated) of a pixel whose own light is `own` from the
+    /// neighbourhood's mean estimates `mean`, and each signal's share of its own light in it.
+    fn blend(&self, own: [Vec3; 2], mean: [f32; 4]) -> (Vec3, [f32; 2]) {
         let share = std::array::from_fn(|s| {
             let (f, y) = (mean[s].max(0.0), mean[2 + s]);
             let b = f / (f + y);
@@ -109,7 +107,7 @@ impl Risk {
             }
         });
         let light = (0..2)
-            .map(|s| self.filtered[s] + share[s] * (self.own[s] - self.filtered[s]))
+            .map(|s| self.filtered[s] + share[s] * (own[s] - self.filtered[s]))
             .sum();
         (light, share)
     }
@@ -139,9 +137,11 @@ fn add(acc: &mut [f32], add: &[f32]) {
 
 /// Blends every valid pixel of a `width`-wide image of `risks` (sky and bad pixels pass
 /// through: left alone in `out`) by the mean estimates over its `(2 radius + 1)^2`
-/// neighbourhood: `out[i]` becomes `finish(i, light)` of its blended light (demodulated), and
-/// `shares[i]` each signal's share of its own light (NaN for the others). The sums run over
-/// whole rows of terms (rows, then columns), in the same order whatever the thread count.
+/// neighbourhood, with its own light `own(i)` (demodulated): `out[i]` becomes `finish(i,
+/// light)` of its blended light, and `shares[i]` each signal's share of its own light (NaN for
+/// the others). The sums run over whole rows of terms (rows, then columns), in the same order
+/// whatever the thread count.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn blend(
     risks: &[Risk],
     width: usize,
@@ -149,6 +149,7 @@ pub(crate) fn blend(
     scratch: &mut Scratch,
     out: &mut [Vec3],
     shares: &mut Vec<[f32; 2]>,
+    own: impl Fn(usize) -> [Vec3; 2] + Sync,
     finish: impl Fn(usize, Vec3) -> Vec3 + Sync,
 ) {
     shares.clear();
@@ -188,14 +189,16 @@ pub(crate) fn blend(
             }
         });
     let rows = &rows[..];
+    // Each row's sums over its columns, in a buffer of each worker's.
     out.par_chunks_mut(width)
         .zip(shares.par_chunks_mut(width))
         .enumerate()
-        .for_each(|(y, (out, shares))| {
+        .for_each_init(Vec::new, |sums, (y, (out, shares))| {
             let (y0, y1) = (y.saturating_sub(radius), (y + radius + 1).min(height));
-            let mut sums = rows[y0 * row..(y0 + 1) * row].to_vec();
+            sums.clear();
+            sums.extend_from_slice(&rows[y0 * row..(y0 + 1) * row]);
             for r in y0 + 1..y1 {
-                add(&mut sums, &rows[r * row..(r + 1) * row]);
+                add(sums, &rows[r * row..(r + 1) * row]);
             }
             let risks = &risks[y * width..(y + 1) * width];
             for (x, ((o, share), s)) in out
@@ -219,9 +222,10 @@ pub(crate) fn blend(
                     let var = ((s[4 + k] - s[k] * mean[k]) / (n - 1.0).max(1.0)).max(0.0);
                     mean[k] -= (var / n).sqrt();
                 }
+                let i = y * width + x;
                 let light;
-                (light, *share) = r.blend(mean);
-                *o = finish(y * width + x, light);
+                (light, *share) = r.blend(own(i), mean);
+                *o = finish(i, light);
             }
         });
 }
@@ -246,11 +250,12 @@ mod tests {
         // Moved by one standard error: SURE(f) = 0.01 - 0.01 + 0.0002, far below SURE(y) =
         // 0.01.
         let near = moved(0.6);
-        let (light, _) = near.blend(near.estimates);
+        let own = [Vec3::splat(0.5), Vec3::ZERO];
+        let (light, _) = near.blend(own, near.estimates);
         assert!((light.x - 0.6).abs() < 0.005, "{light}");
         // Moved by ten standard errors: SURE(f) = 1 - 0.01 + 0.0002, 99 times SURE(y).
         let far = moved(1.5);
-        let (light, share) = far.blend(far.estimates);
+        let (light, share) = far.blend(own, far.estimates);
         assert!((share[0] - 0.99).abs() < 0.001, "{share:?}");
         assert!((light.x - 0.51).abs() < 0.001, "{light}");
     }
@@ -270,17 +275,26 @@ mod tests {
         };
         let risks = [moved(1.0), moved(1.2), moved(0.8), Risk::none()];
         let sky = Vec3::splat(7.0);
-        let mut out = [sky; 4];
-        let mut shares = Vec::new();
-        blend(
-            &risks,
-            4,
-            1,
-            &mut Scratch::default(),
-            &mut out,
-            &mut shares,
-            |_, l| l,
-        );
+        // The blend of a row of `risks` whose own light is 0, over a sky of 7.
+        let run = |risks: &[Risk], radius: usize| {
+            let mut out = vec![sky; risks.len()];
+            let mut shares = Vec::new();
+            let own = |_| [Vec3::ZERO; 2];
+            let n = risks.len();
+            let mut scratch = Scratch::default();
+            blend(
+                risks,
+                n,
+                radius,
+                &mut scratch,
+                &mut out,
+                &mut shares,
+                own,
+                |_, l| l,
+            );
+            (out, shares)
+        };
+        let (out, shares) = run(&risks, 1);
         assert_eq!(out[3], sky, "the sky is left alone");
         assert!(shares[3][0].is_nan());
         // The second pixel's direct light: the mean of the three SURE(f) = d^2 - 0.1 + 2 0.1
@@ -304,17 +318,7 @@ mod tests {
         // light; so does one without any neighbour that counts.
         let mut huge = moved(1.0);
         huge.estimates[0] = f32::INFINITY;
-        let risks = [huge, moved(1.2)];
-        let mut out = [sky; 2];
-        blend(
-            &risks,
-            2,
-            0,
-            &mut Scratch::default(),
-            &mut out,
-            &mut shares,
-            |_, l| l,
-        );
+        let (out, shares) = run(&[huge, moved(1.2)], 0);
         assert_eq!(out[0], Vec3::new(1.0, 1.0, 1.0), "{}", out[0]);
         assert_eq!(shares[0], [0.0, 0.0]);
     }

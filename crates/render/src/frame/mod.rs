@@ -188,10 +188,19 @@ pub struct Pipeline {
     /// SVGF with `svgf_still_handover`: an epoch's first frame leaves its G-buffer and
     /// lighting for the features' statistics to the next frame, which gathers them only if
     /// it continues the epoch (the camera stayed); a camera that moves at every frame then
-    /// gathers nothing. The epoch whose first frame waits, and the spare buffers the next
-    /// frame traces into meanwhile (with the epoch of the frame they then hold).
+    /// gathers nothing. The epoch whose first frame waits in the frame's own buffers.
     deferred: Option<u64>,
-    spare: (GBuffer, Vec<LightSample>, Option<u64>),
+    /// The buffers the next frame traces into meanwhile.
+    spare: Spare,
+}
+
+/// The G-buffer and lighting of a frame whose features wait to be gathered, and its epoch
+/// (none once gathered or dropped).
+#[derive(Default)]
+struct Spare {
+    gbuffer: GBuffer,
+    lighting: Vec<LightSample>,
+    epoch: Option<u64>,
 }
 
 /// Why a frame starts a new epoch.
@@ -228,7 +237,7 @@ impl Pipeline {
             after_move: false,
             carried: false,
             deferred: None,
-            spare: (GBuffer::default(), Vec::new(), None),
+            spare: Spare::default(),
         }
     }
 
@@ -398,6 +407,8 @@ impl Pipeline {
         let mut restir_times: Option<RestirTimes> = None;
         let frame = &self.config.frame;
         let techniques = frame.adaptive.enabled || frame.reprojection.enabled;
+        // Every pixel traced the plain way (neither seed 000's techniques nor ReSTIR).
+        let uniform = !(techniques || frame.restir.enabled);
         if traced {
             let camera = self.camera.as_ref().expect("set by start_epoch");
             let tracer = PathTracer {
@@ -501,12 +512,14 @@ impl Pipeline {
                 if let Some(epoch) = self.deferred.take() {
                     // The waiting frame's buffers become the spare ones; this frame traces
                     // into the others (every pixel of them).
-                    let (g, l, held) = &mut self.spare;
-                    std::mem::swap(&mut self.gbuffer, g);
-                    std::mem::swap(&mut self.lighting, l);
-                    *held = Some(epoch);
-                    self.gbuffer.resize(g.width, g.height);
-                    self.lighting.resize(l.len(), LightSample::default());
+                    let spare = &mut self.spare;
+                    std::mem::swap(&mut self.gbuffer, &mut spare.gbuffer);
+                    std::mem::swap(&mut self.lighting, &mut spare.lighting);
+                    spare.epoch = Some(epoch);
+                    self.gbuffer
+                        .resize(spare.gbuffer.width, spare.gbuffer.height);
+                    self.lighting
+                        .resize(spare.lighting.len(), LightSample::default());
                 }
                 trace(
                     &mut self.gbuffer,
@@ -631,11 +644,11 @@ impl Pipeline {
             if traced && filter.gathers_features() {
                 // The epoch's first frame, if it waited, before this one (the statistics
                 // are then those of gathering every frame, bit for bit).
-                let (g, l, held) = &mut self.spare;
-                if held.take() == Some(self.epoch) {
-                    self.filter.gather(self.epoch, g, l);
+                let spare = &mut self.spare;
+                if spare.epoch.take() == Some(self.epoch) {
+                    self.filter
+                        .gather(self.epoch, &spare.gbuffer, &spare.lighting);
                 }
-                let uniform = !(techniques || self.config.frame.restir.enabled);
                 if svgf && self.frames == 1 && uniform {
                     self.deferred = Some(self.epoch);
                 } else {
@@ -658,7 +671,7 @@ impl Pipeline {
             });
         } else if !self.filter.image.is_empty() {
             self.filter.clear();
-            (self.deferred, self.spare.2) = (None, None);
+            (self.deferred, self.spare.epoch) = (None, None);
         }
         let spp = if techniques {
             let total: u64 = self.history.par_iter().map(|h| h.n as u64).sum();
@@ -711,8 +724,8 @@ impl Pipeline {
             + self.filter.bytes()
             + self.repair.bytes()
             + self.hits.iter().map(|r| r.capacity()).sum::<usize>() * size_of::<PrimaryHit>()
-            + self.spare.0.pixels.capacity() * size_of::<GPixel>()
-            + self.spare.1.capacity() * size_of::<LightSample>();
+            + self.spare.gbuffer.pixels.capacity() * size_of::<GPixel>()
+            + self.spare.lighting.capacity() * size_of::<LightSample>();
         (plain, techniques)
     }
 
