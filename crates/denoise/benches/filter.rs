@@ -10,7 +10,8 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
 use pathlight_core::rng::Rng;
 use pathlight_denoise::{
-    DataDriven, ErrorPair, Features, FilterConfig, Method, Svgf, SvgfFrame, SvgfParams,
+    ColourWeights, DataDriven, ErrorPair, Features, FilterConfig, Method, Svgf, SvgfFrame,
+    SvgfParams,
 };
 
 fn vec3(rng: &mut Rng, scale: f32) -> Vec3 {
@@ -117,8 +118,9 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
         }
     }
     // The filter before 2026-11-26 (the errors' product in the colour test, sigma 4, the
-    // texture2 test), the SURE blend (`sure`, radius 3), and the narrower lanes where the processor has wider ones (21x21 with
-    // holes only).
+    // texture2 test), the SURE blend (`sure`, radius 3), the colour test's channels alike
+    // (`colour_weights = "equal"`, the default until 2026-11-28), and the narrower lanes
+    // where the processor has wider ones (21x21 with holes only).
     if kernels.contains(&21) {
         let holes = FilterConfig {
             method: Method::DataDriven,
@@ -137,9 +139,14 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
             sure: true,
             ..holes.clone()
         };
+        let equal = FilterConfig {
+            colour_weights: ColourWeights::Equal,
+            ..holes.clone()
+        };
         for (name, config, lanes) in [
             ("product", before, "widest"),
             ("sure", sure, "widest"),
+            ("equal", equal, "widest"),
             ("avx2", holes.clone(), "avx2"),
             ("portable", holes, "portable"),
         ] {

@@ -55,6 +55,26 @@
 //!   demodulating; else the sample variance of the luminance over the pixel's 3x3
 //!   neighbourhood (a single sample's: the real-time case of one sample per frame). Each is at
 //!   least `0.01 (1 + L)`, so that a pixel whose samples agree exactly is not a wall to all.
+//! - **Channel weights** (`colour_weights = "albedo"`, not in the thesis; the default): a
+//!   colour difference's channel `c` counts `(a_c / L(a))^2` times, `a` the centre's
+//!   demodulator and `L` its luminance, so the test measures the difference as the centre
+//!   shows it, relative to its brightness. Demodulated, a saturated surface's dim channels
+//!   (a red leaf's green, albedo 0.05) carry the illumination's noise divided by their albedo;
+//!   tested alike with the luminance's standard error, that noise hides a change in the
+//!   channel the surface shows, and the filter blurs it (the garden's red foliage). The
+//!   standard errors follow the same measure: the caller's variance is the channels' mean
+//!   ([`Features::light_variance`]), and a single sample's neighbourhood error, the
+//!   luminance's, is scaled by the root of the mean weight (exact for illumination whose
+//!   noise is the same in each channel), so that on a grey surface the test is the one
+//!   with equal weights. The SURE blend's squared errors are then the channels' mean of the
+//!   weighted squares. A tap's weighted difference `sqrt(w_c) (a_c - b_c)` is one fused
+//!   multiply-add with the centre's light premultiplied, as many operations as the plain
+//!   difference (the first form, three multiplications more per tap and signal, cost 5% of
+//!   the 21x21 window with holes at 640x360; this one about 1%). Measured on
+//!   `experiments/001-quality.toml` and `001-still.toml`: better from 8 spp on (the
+//!   interior's CIELUV MSE at 8 spp 0.081x -> 0.058x the unfiltered image's; the garden's at
+//!   128 frames 1.30x -> 0.92x), 0.01-0.02 worse at 1 spp, where a saturated pixel's noise
+//!   sits in the one channel the test then weighs (BENCHMARKS.md, "Seed 001").
 //! - **The two errors added** (`error_pair`, not in the thesis): the colour test asks whether
 //!   two pixels' means differ by more than their noise, and the noise of a difference is
 //!   `e_p^2 + e_q^2`. A pixel whose few samples held a firefly (a large `e_p`) then takes its
@@ -97,7 +117,7 @@ use glam::Vec3;
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig};
+use crate::config::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, FilterConfig};
 use crate::simd::{
     channels, dispatch, exp_neg, finite, iota, luminance_lanes, store_first, ByGroups, F32xN,
     Groups, Isa, Kernel, LANES,
@@ -314,7 +334,8 @@ impl DataDriven {
         self.errors.resize(f.len(), [0.0; 2]);
         let blur = units == ColourUnits::Variance && config.error_blur;
         if units == ColourUnits::Variance {
-            self.neighbourhood_errors(f, &albedo, &valid);
+            let weights = config.colour_weights == ColourWeights::Albedo;
+            self.neighbourhood_errors(f, &albedo, &valid, weights);
             if blur {
                 self.blur_errors(f, &albedo, &valid);
             }
@@ -339,12 +360,15 @@ impl DataDriven {
     /// For the pixels whose light's variance the caller does not know (not [`known`]), the
     /// standard error of the mean of the direct and indirect light's luminance (demodulated)
     /// from the 3x3 neighbourhood's variance (a single sample's), into `errors` (left alone
-    /// when every variance is known).
+    /// when every variance is known). With the colour test's channel weights (`weights`),
+    /// each is scaled to the channels' mean error, as for light whose noise is the same in
+    /// every channel: by the root of the mean of the pixel's weights.
     fn neighbourhood_errors(
         &mut self,
         f: &Features,
         albedo: &(impl Fn(usize) -> Vec3 + Sync),
         valid: &(impl Fn(usize) -> bool + Sync),
+        weights: bool,
     ) {
         let unknown = f
             .light_variance
@@ -365,6 +389,16 @@ impl DataDriven {
             .compute(Statistic::Deviation, self.isa, &mut self.errors, |i, k| {
                 known(f.light_variance[i][k])
             });
+        if weights {
+            self.errors.par_iter_mut().enumerate().for_each(|(i, e)| {
+                let scale = (channel_weights(albedo(i)).element_sum() / 3.0).sqrt();
+                for (k, e) in e.iter_mut().enumerate() {
+                    if !known(f.light_variance[i][k]) {
+                        *e *= scale;
+                    }
+                }
+            });
+        }
     }
 }
 
@@ -589,6 +623,8 @@ struct Scales {
     /// The colour scales' planes hold squared standard errors, added in the window
     /// (`ErrorPair::Sum`), instead of factors multiplied.
     sum: bool,
+    /// The colour tests weigh the channels by the centre's albedo (`ColourWeights::Albedo`).
+    weights: bool,
 }
 
 impl Scales {
@@ -609,6 +645,7 @@ impl Scales {
             relative_depth: c.depth_units == DepthUnits::Relative,
             demodulate: c.demodulate,
             sum: c.colour_units == ColourUnits::Variance && c.error_pair == ErrorPair::Sum,
+            weights: c.colour_weights == ColourWeights::Albedo,
         }
     }
 
@@ -763,11 +800,16 @@ impl Row<'_> {
                 continue;
             }
             let centre = self.centre(x0);
-            let sums = match (self.scales.sum, self.scales.texture2 > 0.0) {
-                (true, false) => self.sums::<V, true, false>(x0, &centre),
-                (true, true) => self.sums::<V, true, true>(x0, &centre),
-                (false, false) => self.sums::<V, false, false>(x0, &centre),
-                (false, true) => self.sums::<V, false, true>(x0, &centre),
+            let s = self.scales;
+            let sums = match (s.sum, s.texture2 > 0.0, s.weights) {
+                (true, false, false) => self.sums::<V, true, false, false>(x0, &centre),
+                (true, true, false) => self.sums::<V, true, true, false>(x0, &centre),
+                (false, false, false) => self.sums::<V, false, false, false>(x0, &centre),
+                (false, true, false) => self.sums::<V, false, true, false>(x0, &centre),
+                (true, false, true) => self.sums::<V, true, false, true>(x0, &centre),
+                (true, true, true) => self.sums::<V, true, true, true>(x0, &centre),
+                (false, false, true) => self.sums::<V, false, false, true>(x0, &centre),
+                (false, true, true) => self.sums::<V, false, true, true>(x0, &centre),
             };
             if let Some(risks) = risks.as_deref_mut() {
                 self.risks::<V>(&sums, &centre, valid, &mut risks[x0..x0 + n]);
@@ -844,6 +886,10 @@ impl Row<'_> {
                 [wd[j], wi[j]],
                 variance,
                 self.centre,
+                self.scales.weights.then(|| {
+                    let t = Vec3::new(c.texture[0][j], c.texture[1][j], c.texture[2][j]);
+                    channel_weights(divisor(t, self.scales.demodulate))
+                }),
             );
         }
     }
@@ -927,7 +973,7 @@ impl Row<'_> {
     /// The weighted sums over the window of each centre of the block. (No closures here:
     /// see `simd::exp_neg`.)
     #[inline(always)]
-    fn sums<V: F32xN, const SUM: bool, const TEXTURE2: bool>(
+    fn sums<V: F32xN, const SUM: bool, const TEXTURE2: bool, const WEIGHTS: bool>(
         &self,
         x0: usize,
         centre: &Centre<Lanes>,
@@ -948,6 +994,14 @@ impl Row<'_> {
             indirect_w: zero,
             indirect: [zero; 3],
         };
+        // The colour tests' channel weights' roots, and the centre's light times them, negated:
+        // a tap's weighted difference is then one fused multiply-add per channel.
+        let (root, direct_root, indirect_root) = if WEIGHTS {
+            let root = roots(c.texture, self.scales.demodulate);
+            (root, negated(root, c.direct), negated(root, c.indirect))
+        } else {
+            ([zero; 3], [zero; 3], [zero; 3])
+        };
         for &offset in self.offsets {
             let base = corner + offset;
             let mut v = [zero; PLANES];
@@ -960,7 +1014,6 @@ impl Row<'_> {
             let dd = v[D] - c.depth;
             let features = term(three(N), c.normal, c.c_normal, c.c_depth * (dd * dd));
             let features = term(three(T), c.texture, c.c_texture, features);
-            let minus = V::splat(-1.0);
             // The colour tests' coefficients: `k / (e_p^2 + e_q^2)` or `k s_p s_q`.
             let (kd, ki) = if SUM {
                 (
@@ -970,14 +1023,29 @@ impl Row<'_> {
             } else {
                 (c.c_direct * v[SCALE_D], c.c_indirect * v[SCALE_I])
             };
-            let wd = v[VALID] * exp_neg(minus * term(three(F0), c.direct, kd, features));
+            let valid = v[VALID];
+            let wd = weight::<V, WEIGHTS>(
+                valid,
+                three(F0),
+                (c.direct, direct_root),
+                root,
+                kd,
+                features,
+            );
             // Without the texture2 test its planes are not read (the loads are dead code).
             let indirect = if TEXTURE2 {
                 term(three(T2), c.texture2, c.c_texture2, features)
             } else {
                 features
             };
-            let wi = v[VALID] * exp_neg(minus * term(three(F1), c.indirect, ki, indirect));
+            let wi = weight::<V, WEIGHTS>(
+                valid,
+                three(F1),
+                (c.indirect, indirect_root),
+                root,
+                ki,
+                indirect,
+            );
             s.direct_w = s.direct_w + wd;
             s.indirect_w = s.indirect_w + wi;
             for k in 0..3 {
@@ -994,4 +1062,74 @@ impl Row<'_> {
 fn term<V: F32xN>(a: [V; 3], b: [V; 3], k: V, plus: V) -> V {
     let (x, y, z) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     k.mul_add(x.mul_add(x, y.mul_add(y, z * z)), plus)
+}
+
+/// A colour test's exponent in lanes: [`term`] of `a` and the centre's `b`, or with the
+/// channel weights (`WEIGHTS`; `root`, their roots, and `b_root = -root b`) `k sum_c w_c (a_c -
+/// b_c)^2 + plus`.
+#[inline(always)]
+fn colour<V: F32xN, const WEIGHTS: bool>(
+    a: [V; 3],
+    (b, b_root): ([V; 3], [V; 3]),
+    root: [V; 3],
+    k: V,
+    plus: V,
+) -> V {
+    if !WEIGHTS {
+        return term(a, b, k, plus);
+    }
+    let x = root[0].mul_add(a[0], b_root[0]);
+    let y = root[1].mul_add(a[1], b_root[1]);
+    let z = root[2].mul_add(a[2], b_root[2]);
+    k.mul_add(x.mul_add(x, y.mul_add(y, z * z)), plus)
+}
+
+/// A signal's weight at a neighbour of validity `valid` (1 or 0) in lanes: its [`colour`]
+/// test and the tests in `plus`, `valid exp(-exponent)`.
+#[inline(always)]
+fn weight<V: F32xN, const WEIGHTS: bool>(
+    valid: V,
+    a: [V; 3],
+    centre: ([V; 3], [V; 3]),
+    root: [V; 3],
+    k: V,
+    plus: V,
+) -> V {
+    valid * exp_neg(V::splat(-1.0) * colour::<V, WEIGHTS>(a, centre, root, k, plus))
+}
+
+/// `-root light`, channel by channel, in lanes.
+#[inline(always)]
+fn negated<V: F32xN>(root: [V; 3], light: [V; 3]) -> [V; 3] {
+    let zero = V::splat(0.0);
+    [
+        zero - root[0] * light[0],
+        zero - root[1] * light[1],
+        zero - root[2] * light[2],
+    ]
+}
+
+/// The roots of [`channel_weights`] in lanes, `a / L(a)`, of a pixel of albedo `albedo` (its
+/// plane: 0 where not valid).
+#[inline(always)]
+fn roots<V: F32xN>(albedo: [V; 3], demodulate: bool) -> [V; 3] {
+    let a = if demodulate {
+        [
+            demodulator_lanes(albedo[0]),
+            demodulator_lanes(albedo[1]),
+            demodulator_lanes(albedo[2]),
+        ]
+    } else {
+        [V::splat(1.0); 3]
+    };
+    let inv = V::splat(1.0) / luminance_lanes(a);
+    [a[0] * inv, a[1] * inv, a[2] * inv]
+}
+
+/// The colour test's channel weights at a pixel whose light is divided by `a`
+/// (`ColourWeights::Albedo`): `(a_c / L(a))^2`. Their mean is the ratio of the mean channel's
+/// variance to the luminance's, for light whose noise is the same in every channel.
+pub(crate) fn channel_weights(a: Vec3) -> Vec3 {
+    let r = a / luminance(a);
+    r * r
 }

@@ -7,8 +7,9 @@
 //! first bounce), each the mean over the pixel's samples; `variance` holds, per pixel, the
 //! sample variance (n-1) of depth, normal, texture, first-bounce direction and texture2, each
 //! summed over its components; `light_variance` the variance of the mean of the light's
-//! luminance; `roughness` and `metallic` the material's at the first hit (means over the
-//! pixel's samples), which say how fast a glossy reflection turns with the normal.
+//! luminance (or of its channels' mean); `roughness` and `metallic` the material's at the
+//! first hit (means over the pixel's samples), which say how fast a glossy reflection turns
+//! with the normal.
 
 use glam::Vec3;
 
@@ -34,8 +35,9 @@ pub struct Features<'a> {
     pub texture2: &'a [Vec3],
     pub variance: &'a [[f32; 5]],
     /// The variance of the mean of the luminance of the direct and of the indirect light
-    /// (not demodulated); NaN where the caller does not know it (one sample). Read by the
-    /// variance colour units only.
+    /// (not demodulated), or, with `colour_weights = "albedo"`, the mean over the channels of
+    /// each one's; NaN where the caller does not know it (one sample). Read by the variance
+    /// colour units only.
     pub light_variance: &'a [[f32; 2]],
     /// The first hit's roughness (perceptual: GGX alpha is its square) and metallic factor,
     /// means over the pixel's samples (1 and 0 where unknown: the thesis's normal test).

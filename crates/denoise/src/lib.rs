@@ -24,7 +24,7 @@ mod sure;
 pub mod svgf;
 pub mod taa;
 
-pub use config::{ColourUnits, DepthUnits, ErrorPair, FilterConfig, Method};
+pub use config::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, FilterConfig, Method};
 pub use data_driven::DataDriven;
 pub use features::Features;
 pub use svgf::{Svgf, SvgfFrame, SvgfParams};

@@ -56,20 +56,27 @@ pub(crate) struct Risk {
 
 impl Risk {
     /// The risks of a filtered pixel: `filtered` from sums of weight `weight` (the centre's
-    /// own `centre`), its own light `own` of noise variance `variance` (its luminance's),
-    /// each signal apart.
+    /// own `centre`), its own light `own` of noise variance `variance`, each signal apart.
+    /// The squared errors are the luminance's, or with the colour test's channel weights
+    /// (`channels`, [`crate::config::ColourWeights::Albedo`]) the mean over the channels of
+    /// each one's squared error times its weight, the measure of `variance` then.
     pub fn new(
         filtered: [Vec3; 2],
         own: [Vec3; 2],
         weight: [f32; 2],
         variance: [f32; 2],
         centre: f32,
+        channels: Option<Vec3>,
     ) -> Self {
         let mut estimates = [0.0; 4];
         for s in 0..2 {
-            let d = luminance(filtered[s] - own[s]);
+            let d = filtered[s] - own[s];
+            let d2 = match channels {
+                None => luminance(d) * luminance(d),
+                Some(w) => (w * d * d).element_sum() / 3.0,
+            };
             let v = variance[s];
-            estimates[s] = d * d - v + 2.0 * v * centre / weight[s];
+            estimates[s] = d2 - v + 2.0 * v * centre / weight[s];
             estimates[2 + s] = v;
         }
         Self {
@@ -245,6 +252,7 @@ mod tests {
                 [100.0, 1.0],
                 [0.01, 0.0],
                 1.0,
+                None,
             )
         };
         // Moved by one standard error: SURE(f) = 0.01 - 0.01 + 0.0002, far below SURE(y) =
@@ -258,6 +266,22 @@ mod tests {
         let (light, share) = far.blend(own, far.estimates);
         assert!((share[0] - 0.99).abs() < 0.001, "{share:?}");
         assert!((light.x - 0.51).abs() < 0.001, "{light}");
+        // With the colour test's channel weights, the squared error is the channels' mean of
+        // the weighted squares: moved by 1 in red alone, weighed 6 (then 1 and 0.5):
+        // 6 / 3 - 0.01 + 0.0002.
+        let red = Risk::new(
+            [Vec3::new(1.5, 0.5, 0.5), Vec3::ZERO],
+            [Vec3::splat(0.5), Vec3::ZERO],
+            [100.0, 1.0],
+            [0.01, 0.0],
+            1.0,
+            Some(Vec3::new(6.0, 1.0, 0.5)),
+        );
+        assert!(
+            (red.estimates[0] - 1.9902).abs() < 1e-5,
+            "{:?}",
+            red.estimates
+        );
     }
 
     #[test]
@@ -271,6 +295,7 @@ mod tests {
                 [10.0, 10.0],
                 [0.1, 0.1],
                 1.0,
+                None,
             )
         };
         let risks = [moved(1.0), moved(1.2), moved(0.8), Risk::none()];

@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 use pathlight_denoise::{
-    ColourUnits, DataDriven, ErrorPair, Features, FilterConfig, FilterError, Method,
+    ColourUnits, ColourWeights, DataDriven, ErrorPair, Features, FilterConfig, FilterError, Method,
 };
 
 /// A frame's buffers, owned.
@@ -239,6 +239,18 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                 0.0
             };
             let lum3 = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
+            // The colour test's channel weights: (a_c / L(a))^2 of the centre's albedo.
+            let weights = match c.colour_weights {
+                ColourWeights::Equal => glam::DVec3::ONE,
+                ColourWeights::Albedo => {
+                    let r = albedo(p).as_dvec3() / lum3(albedo(p));
+                    r * r
+                }
+            };
+            let colour_sq = |a: Vec3, b: Vec3| {
+                let d = (a - b).as_dvec3();
+                (weights * d * d).element_sum()
+            };
             let lum = |i: usize| lum3(direct[i] + indirect[i]).max(0.0);
             // The colour differences' scales of pixel i, direct and indirect: a factor, or
             // the standard error of its mean light.
@@ -282,8 +294,8 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
                         colour(c.sigma_direct, sp[0], sq_[0]),
                         colour(c.sigma_indirect, sp[1], sq_[1]),
                     );
-                    let wd = (-(c_direct * sq(direct[q], direct[p]) + feat)).exp();
-                    let wi = (-(c_indirect * sq(indirect[q], indirect[p])
+                    let wd = (-(c_direct * colour_sq(direct[q], direct[p]) + feat)).exp();
+                    let wi = (-(c_indirect * colour_sq(indirect[q], indirect[p])
                         + feat
                         + c_texture2 * sq(f.texture2[q], f.texture2[p])))
                     .exp();
@@ -304,8 +316,13 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
     // A width that is not a multiple of the 16 lanes, windows cut by every border; every
     // kind of lanes in turn (those this processor lacks fall back to narrower ones).
     let f = busy(37, 23, 7);
+    // The channel weights on a saturated surface (reds of two shades).
+    let mut red = f.clone();
+    for a in &mut red.albedo {
+        *a *= Vec3::new(1.0, 0.2, 0.05);
+    }
     let (sum, product) = (ErrorPair::Sum, ErrorPair::Product);
-    for (kernel, holes, demodulate, colour_units, error_pair, texture2_test, lanes) in [
+    for case in [
         (1, false, true, ColourUnits::Relative, sum, false, "widest"),
         (5, false, true, ColourUnits::Variance, sum, true, "avx2"),
         (
@@ -348,7 +365,12 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
             true,
             "widest",
         ),
-    ] {
+    ]
+    .into_iter()
+    .flat_map(|case| [(case, ColourWeights::Equal), (case, ColourWeights::Albedo)])
+    {
+        let ((kernel, holes, demodulate, colour_units, error_pair, texture2_test, lanes), weights) =
+            case;
         let c = FilterConfig {
             kernel,
             holes,
@@ -356,6 +378,7 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
             colour_units,
             error_pair,
             texture2_test,
+            colour_weights: weights,
             // The glossy normal test off, the default, wider.
             sigma_normal_lobe: match kernel {
                 9 => 0.0,
@@ -364,7 +387,11 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
             },
             ..data_driven()
         };
-        let (got, want) = (f.filter_with(&c, lanes), reference(&f, &c));
+        let f = match weights {
+            ColourWeights::Equal => &f,
+            ColourWeights::Albedo => &red,
+        };
+        let (got, want) = (f.filter_with(&c, lanes), reference(f, &c));
         let mut worst = 0.0f32;
         for (g, w) in got.iter().zip(&want) {
             worst = worst.max((*g - *w).abs().max_element() / w.abs().max_element().max(0.01));
@@ -372,7 +399,7 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
         assert!(
             worst < 1e-4,
             "kernel {kernel} holes {holes} demodulate {demodulate} {error_pair:?} texture2 \
-             {texture2_test} lanes {lanes} lobe {}: {worst}",
+             {texture2_test} {weights:?} lanes {lanes} lobe {}: {worst}",
             c.sigma_normal_lobe
         );
         // The filter does something here (but for the 1x1 window).
@@ -950,4 +977,83 @@ fn the_sure_blend_keeps_a_step_a_loose_test_blurs_and_still_smooths_noise() {
         let err = filter.filter(&many.features(), &bad, &mut o).unwrap_err();
         assert!(matches!(err, FilterError::Parameter { .. }), "{err}");
     }
+}
+
+#[test]
+fn albedo_weights_keep_a_step_in_the_channel_a_saturated_wall_shows() {
+    // A red wall (albedo 0.8, 0.05, 0.05) whose illumination's red channel steps from 0.7 to
+    // 1 halfway across (its green and blue stay 1), with noise of standard deviation 0.1 in
+    // each channel of the illumination, the light's variance given as the colour weights
+    // measure it. Demodulated, the green and blue channels' noise is as large as the red's,
+    // but the wall shows them at a sixteenth of it: tested alike, their noise hides the step
+    // and the filter blurs it; weighted by the albedo, the test sees the step the pixel shows
+    // (three standard deviations) and keeps it, and still smooths the flat parts.
+    let (w, h) = (64, 32);
+    let albedo = Vec3::new(0.8, 0.05, 0.05);
+    let sigma = 0.1f32;
+    let image = |weights: ColourWeights| {
+        let mut rng = Rng::new(11);
+        let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
+        let variance = albedo * albedo * sigma * sigma;
+        let measured = match weights {
+            ColourWeights::Equal => variance.dot(Vec3::new(0.2126, 0.7152, 0.0722)),
+            ColourWeights::Albedo => variance.element_sum() / 3.0,
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let red = if x < w / 2 { 0.7 } else { 1.0 };
+                let light = Vec3::new(red, 1.0, 1.0) + sigma * rng.normal3();
+                f.direct[i] = albedo * light;
+                f.albedo[i] = albedo;
+                f.light_variance[i] = [measured, 0.0];
+            }
+        }
+        f
+    };
+    let config = |weights| FilterConfig {
+        method: Method::DataDriven,
+        colour_weights: weights,
+        ..FilterConfig::default()
+    };
+    // The red step between the two middle columns, averaged over the rows (0.24 shown).
+    let step = |img: &[Vec3]| {
+        (0..h)
+            .map(|y| img[y * w + w / 2].x - img[y * w + w / 2 - 1].x)
+            .sum::<f32>()
+            / h as f32
+    };
+    let noise = |img: &[Vec3]| spread(img, w, 4..12, 10..18);
+    let equal = image(ColourWeights::Equal);
+    let weighted = image(ColourWeights::Albedo);
+    let (blurred, kept) = (
+        step(&equal.filter(&config(ColourWeights::Equal))),
+        step(&weighted.filter(&config(ColourWeights::Albedo))),
+    );
+    assert!(blurred < 0.16, "channels alike: step {blurred}");
+    assert!((kept - 0.24).abs() < 0.03, "weighted: step {kept}");
+    let (before, after) = (
+        noise(&weighted.direct),
+        noise(&weighted.filter(&config(ColourWeights::Albedo))),
+    );
+    // 0.49 measured (a grey wall of the same illumination's noise under the plain test:
+    // 0.24; with its noise in one channel, the test picks neighbours whose noise is like the
+    // centre's more often).
+    assert!(after < 0.6 * before, "flat part: {after} against {before}");
+    // Unknown variances (one sample): the neighbourhood's errors (which the step itself
+    // raises beside it), scaled to the channels' mean, keep most of the step.
+    let unknown = |f: &Frame, weights| {
+        let mut f = f.clone();
+        f.light_variance.fill([f32::NAN; 2]);
+        step(&f.filter(&config(weights)))
+    };
+    let (blurred, kept) = (
+        unknown(&equal, ColourWeights::Equal),
+        unknown(&weighted, ColourWeights::Albedo),
+    );
+    assert!(
+        blurred < 0.16,
+        "channels alike, unknown variances: step {blurred}"
+    );
+    assert!(kept > 0.18, "weighted, unknown variances: step {kept}");
 }

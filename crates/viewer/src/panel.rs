@@ -4,7 +4,7 @@
 use eframe::egui;
 use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
-use pathlight_render::denoise::{ColourUnits, DepthUnits, ErrorPair, Method};
+use pathlight_render::denoise::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, Method};
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
@@ -469,6 +469,19 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             );
             ui.radio_value(&mut f.colour_units, ColourUnits::Relative, "relative");
             ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "linear (thesis)");
+        });
+        ui.horizontal(|ui| {
+            ui.label("colour channels");
+            ui.radio_value(&mut f.colour_weights, ColourWeights::Equal, "alike");
+            ui.radio_value(
+                &mut f.colour_weights,
+                ColourWeights::Albedo,
+                "by the albedo",
+            )
+            .on_hover_text(
+                "each channel of a difference weighed by the centre's albedo, (a_c / \
+                     L(a))^2: the test sees the light as the pixel shows it (not in the thesis)",
+            );
         });
         ui.add_enabled_ui(f.colour_units == ColourUnits::Variance, |ui| {
             ui.horizontal(|ui| {

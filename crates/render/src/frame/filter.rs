@@ -56,7 +56,9 @@
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
-use pathlight_denoise::{DataDriven, Features, FilterConfig, FilterError, Method, Svgf, SvgfFrame};
+use pathlight_denoise::{
+    ColourWeights, DataDriven, Features, FilterConfig, FilterError, Method, Svgf, SvgfFrame,
+};
 use rayon::prelude::*;
 
 use super::accumulation::PixelStats;
@@ -147,8 +149,8 @@ pub struct Filter {
     texture2: Vec<Vec3>,
     /// The feature variances the filter read (display modes `variance-*`).
     pub variance: Vec<[f32; 5]>,
-    /// The variance of the mean of the direct and indirect light's luminance (NaN below two
-    /// samples).
+    /// The variance of the mean of the direct and indirect light's luminance, or of its
+    /// channels' mean (`colour_weights = "albedo"`; NaN below two samples).
     light_variance: Vec<[f32; 2]>,
     /// Means of the first hit's roughness and metallic factor (the data-driven filter's).
     roughness: Vec<f32>,
@@ -300,6 +302,12 @@ impl Filter {
         self.metallic.resize(n, 0.0);
         self.coverage.resize(n, (1.0, Vec3::ZERO));
         let split = config.sky_coverage;
+        // The light's variance as the colour test measures it: the luminance's, or the
+        // channels' mean with the channel weights.
+        let measure: fn(Vec3) -> f32 = match config.colour_weights {
+            ColourWeights::Equal => luminance,
+            ColourWeights::Albedo => |v| v.element_sum() / 3.0,
+        };
         (
             &mut self.direct,
             &mut self.indirect,
@@ -325,7 +333,7 @@ impl Filter {
                 |((((d, i, depth, normal, albedo, t2, c), (v, lv)), (h, s)), (r, m))| {
                     *lv = if h.n >= 2 {
                         let k = 1.0 / ((h.n - 1) as f32 * h.n as f32);
-                        [luminance(h.direct.m2) * k, luminance(h.indirect.m2) * k]
+                        [measure(h.direct.m2) * k, measure(h.indirect.m2) * k]
                     } else {
                         [f32::NAN; 2]
                     };
