@@ -90,6 +90,12 @@ impl History {
         self.data[self.at(i) + k * self.width]
     }
 
+    /// Field `k` of row `y`'s pixels.
+    pub fn row_field(&self, y: usize, k: usize) -> &[f32] {
+        let at = (y * FIELDS + k) * self.width;
+        &self.data[at..at + self.width]
+    }
+
     /// Pixel `i`'s luminance moments.
     pub fn moments(&self, i: usize) -> [f32; 4] {
         std::array::from_fn(|k| self.field(i, MOMENTS + k))
@@ -169,5 +175,7 @@ mod tests {
             &row[LENGTH * 5..LENGTH * 5 + 5],
             &[14.0, 15.0, 16.0, 17.0, 18.0]
         );
+        assert_eq!(h.row_field(1, LENGTH), &[14.0, 15.0, 16.0, 17.0, 18.0]);
+        assert_eq!(h.row_field(2, MOMENTS + 1), &[10.0, 11.0, 12.0, 13.0, 14.0]);
     }
 }

@@ -1031,6 +1031,10 @@ fn spatial_variance(f: &SvgfFrame, state: &History, i: usize) -> [f32; 2] {
     let mut sum_w = 0.0;
     let mut acc = [0.0f32; 4];
     for qy in (y - 3).max(0)..(y + 4).min(h) {
+        // The row's moments' planes (found once a row: a pixel's, by its index, cost four
+        // divisions a tap).
+        let moments: [&[f32]; 4] =
+            std::array::from_fn(|k| state.row_field(qy as usize, MOMENTS + k));
         for qx in (x - 3).max(0)..(x + 4).min(w) {
             let q = (qy * w + qx) as usize;
             if passes_through(f, q) {
@@ -1043,8 +1047,8 @@ fn spatial_variance(f: &SvgfFrame, state: &History, i: usize) -> [f32; 2] {
             }
             let wq = ez.exp() * wn;
             sum_w += wq;
-            for (a, m) in acc.iter_mut().zip(state.moments(q)) {
-                *a += m * wq;
+            for (a, m) in acc.iter_mut().zip(moments) {
+                *a += m[qx as usize] * wq;
             }
         }
     }
