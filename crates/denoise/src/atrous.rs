@@ -192,6 +192,18 @@ impl LightRow<'_> {
         self.plane(p)
     }
 
+    /// Both signals' luminance variances (the second empty with one signal).
+    pub fn variances(&mut self) -> [&mut [f32]; 2] {
+        let (first, second) = (plane(&self.grid, v(self.signals)), v(self.signals) + 1);
+        let (head, tail) = self.row.split_at_mut(second * self.grid.pitch);
+        let second = if self.signals == 2 {
+            &mut tail[self.grid.pad..self.grid.pitch]
+        } else {
+            &mut []
+        };
+        [&mut head[first], second]
+    }
+
     /// Signal `s`'s luminance.
     pub fn luminance(&mut self, s: usize) -> &mut [f32] {
         let p = lum(self.signals) + s;
@@ -322,25 +334,21 @@ impl Planes {
             .collect()
     }
 
-    /// Replaces the variance of the pixels where `variance(i)` gives one, in the rows `y`
-    /// where `rows[y]` (the others have none).
-    pub fn amend_variance(
-        &mut self,
-        rows: &[bool],
-        variance: impl Fn(usize) -> Option<[f32; 2]> + Sync,
-    ) {
+    /// Lets `amend(y, row)` amend the light's planes of the rows `y` where `rows[y]` (their
+    /// variances, where the history is short; the other rows have none).
+    pub fn amend_variance(&mut self, rows: &[bool], amend: impl Fn(usize, LightRow) + Sync) {
         let g = self.moving;
         let signals = self.signals;
         g.for_rows(&mut self.current, |y, row| {
-            if !rows[y as usize] {
-                return;
-            }
-            for x in 0..g.width {
-                if let Some(value) = variance(y as usize * g.width + x) {
-                    for (s, value) in value.iter().enumerate().take(signals) {
-                        row[(v(signals) + s) * g.pitch + g.pad + x] = *value;
-                    }
-                }
+            if rows[y as usize] {
+                amend(
+                    y as usize,
+                    LightRow {
+                        row,
+                        grid: g,
+                        signals,
+                    },
+                );
             }
         });
     }
@@ -717,7 +725,7 @@ const MIN_COSINE: f32 = 0.8;
 
 /// [`normal_weight`] in lanes.
 #[inline(always)]
-fn normal_weight_lanes<V: F32xN>(cos: V) -> V {
+pub(crate) fn normal_weight_lanes<V: F32xN>(cos: V) -> V {
     let mut w = V::select(cos.ge(V::splat(MIN_COSINE)), cos, V::splat(0.0));
     for _ in 0..7 {
         w = w * w;

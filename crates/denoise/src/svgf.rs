@@ -60,26 +60,27 @@
 //! The a-trous passes run vectorised over padded planes ([`crate::atrous`]) up to six passes
 //! (holes of 32 pixels), the other stages worked out as the planes are laid out: the features
 //! with the depth gradient (`Features`) and the temporal pass (`Temporal`, the previous frame's
-//! taps loaded from the history's planes, `crate::history`) in lanes, the spatial variance a
-//! function of the pixel (`spatial_variance`) in the rows with a short history, the output in
-//! lanes (`Output`). The scalar passes here, with their own buffers (`integrate`, `depth_gradient`,
-//! `remodulate` of one pixel), are the reference they are tested against and run beyond that
-//! (and for images of 2^24 pixels or more, whose indices an `f32` lane does not hold exactly).
+//! taps loaded from the history's planes, `crate::history`) in lanes, the spatial variance in
+//! lanes too in the rows with a short history (`SpatialVariance`; the groups whose 7x7 window
+//! would leave the row pixel by pixel, `spatial_variance`), the output in lanes (`Output`).
+//! The scalar passes here, with their own buffers (`integrate`, `depth_gradient`, `remodulate`
+//! of one pixel), are the reference they are tested against and run beyond that (and for
+//! images of 2^24 pixels or more, whose indices an `f32` lane does not hold exactly).
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::atrous::{
-    flush_variance, flush_variance_lanes, normal_weight, spline, LightRow, LightView, Planes,
-    StaticRow, BLUR, MAX_PAD, MIN_WEIGHT,
+    flush_variance, flush_variance_lanes, normal_weight, normal_weight_lanes, spline, LightRow,
+    LightView, Planes, StaticRow, BLUR, MAX_PAD, MIN_WEIGHT,
 };
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
 use crate::history::{History, State, DEPTH, FIELDS, LENGTH, LIGHT, MOMENTS, NORMAL, WEIGHTS2};
 use crate::simd::{
-    channels, dispatch, gather3, iota, load_first, luminance_lanes, max, min, store_first,
-    ByGroups, F32xN, Floats, Groups, LANES,
+    channels, dispatch, exp_neg_in_range, gather3, iota, load_first, luminance_lanes, max, min,
+    store_first, ByGroups, F32xN, Floats, Groups, LANES,
 };
 use crate::taa::Taa;
 use crate::{simd, FilterError};
@@ -286,8 +287,19 @@ impl Svgf {
                 });
             // Where the history is short, the variance from the neighbourhood's moments.
             let next = &self.next;
-            self.planes.amend_variance(&rows, |i| {
-                short(f, next, i).then(|| spatial_variance(f, next, i))
+            self.planes.amend_variance(&rows, |y, mut row| {
+                let signals = row.signals;
+                let out = row.variances();
+                dispatch(
+                    isa,
+                    ByGroups(SpatialVariance {
+                        f,
+                        next,
+                        y,
+                        out,
+                        signals,
+                    }),
+                );
             });
             for i in 0..iterations {
                 self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
@@ -1016,6 +1028,98 @@ fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask
     // SAFETY: `emitter` has `LANES` lanes.
     let emitter = unsafe { V::load(emitter.as_ptr()) };
     V::and(simd::finite(depth), V::splat(0.5).gt(emitter))
+}
+
+/// The luminance variances of row `y`'s pixels whose history is short, from the moments of
+/// their 7x7 neighbourhoods ([`spatial_variance`]) in lanes, [`F32xN::N`] pixels at a time,
+/// into the first `signals` of `out` (the row's variance planes); the other pixels' left as
+/// they are. A group whose window would leave the row (its first three or last three pixels)
+/// is worked out pixel by pixel. The same weights, with [`crate::simd::exp_neg`]'s exponential
+/// and fused multiply-adds: the same numbers to rounding. (No closures here: see
+/// `simd::exp_neg`.)
+struct SpatialVariance<'a, 'f> {
+    f: &'a SvgfFrame<'f>,
+    next: &'a History,
+    y: usize,
+    out: [&'a mut [f32]; 2],
+    signals: usize,
+}
+
+impl Groups for SpatialVariance<'_, '_> {
+    fn width(&self) -> usize {
+        self.f.width
+    }
+
+    #[inline(always)]
+    fn group<V: F32xN>(&mut self, x0: usize) -> bool {
+        let (f, next, y) = (self.f, self.next, self.y);
+        let (w, h) = (f.width, f.height);
+        let n = V::N.min(w - x0);
+        let i0 = y * w + x0;
+        if x0 < 3 || x0 + V::N + 3 > w {
+            for x in x0..x0 + n {
+                let i = y * w + x;
+                if short(f, next, i) {
+                    let v = spatial_variance(f, next, i);
+                    for (out, v) in self.out.iter_mut().zip(v).take(self.signals) {
+                        out[x] = v;
+                    }
+                }
+            }
+            return false;
+        }
+        let splat = V::splat;
+        let zero = splat(0.0);
+        let [depth] = channels::<V, f32, 1>(f.depth, i0, n);
+        let length = load_first::<V>(&next.row_field(y, LENGTH)[x0..]);
+        let is_short = V::and(live_lanes(f, i0, n, depth), splat(4.0).gt(length));
+        if !V::any(is_short) {
+            return false;
+        }
+        let normal: [V; 3] = channels(f.normal, i0, n);
+        // The depth test's `-1 / (0.05 z + 1e-6)`.
+        let minus_inv = splat(-1.0) / (depth.mul_add(splat(0.05), splat(1e-6)));
+        let floor = splat(-30.0);
+        let mut sum_w = zero;
+        let mut acc = [zero; 4];
+        for qy in y.saturating_sub(3)..(y + 4).min(h) {
+            let moments: [&[f32]; 4] = [
+                next.row_field(qy, MOMENTS),
+                next.row_field(qy, MOMENTS + 1),
+                next.row_field(qy, MOMENTS + 2),
+                next.row_field(qy, MOMENTS + 3),
+            ];
+            for qx in x0 - 3..=x0 + 3 {
+                let q = qy * w + qx;
+                let [zq] = channels::<V, f32, 1>(f.depth, q, V::N);
+                let nq: [V; 3] = channels(f.normal, q, V::N);
+                let live = live_lanes(f, q, V::N, zq);
+                let ez = (zq - depth).abs() * minus_inv;
+                let cos = nq[0].mul_add(normal[0], nq[1].mul_add(normal[1], nq[2] * normal[2]));
+                let wn = normal_weight_lanes(cos);
+                let used = V::and(live, V::and(wn.gt(zero), ez.ge(floor)));
+                let wq = V::select(used, exp_neg_in_range(ez.at_least(floor)) * wn, zero);
+                sum_w = sum_w + wq;
+                for (a, m) in acc.iter_mut().zip(moments) {
+                    let m = V::select(used, load_first::<V>(&m[qx..]), zero);
+                    *a = m.mul_add(wq, *a);
+                }
+            }
+        }
+        let inv = splat(1.0) / max(sum_w, splat(1e-12));
+        let mean = [acc[0] * inv, acc[1] * inv, acc[2] * inv, acc[3] * inv];
+        // Few frames: the spatial estimate, raised as the paper does.
+        let boost = splat(4.0) / min(length + splat(1.0), splat(4.0));
+        let variance = [
+            flush_variance_lanes(mean[1] - mean[0] * mean[0]) * boost,
+            flush_variance_lanes(mean[3] - mean[2] * mean[2]) * boost,
+        ];
+        for (out, v) in self.out.iter_mut().zip(variance).take(self.signals) {
+            let old = load_first::<V>(&out[x0..]);
+            store_first(V::select(is_short, v, old), n, &mut out[x0..]);
+        }
+        false
+    }
 }
 
 /// Pixel `i`'s history is under 4 frames: its variance comes from its neighbourhood.
