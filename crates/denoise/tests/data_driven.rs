@@ -996,7 +996,7 @@ fn albedo_weights_keep_a_step_in_the_channel_a_saturated_wall_shows() {
         let mut f = Frame::flat(w, h, Vec3::ZERO, Vec3::ZERO);
         let variance = albedo * albedo * sigma * sigma;
         let measured = match weights {
-            ColourWeights::Equal => variance.dot(Vec3::new(0.2126, 0.7152, 0.0722)),
+            ColourWeights::Equal => pathlight_core::color::luminance(variance),
             ColourWeights::Albedo => variance.element_sum() / 3.0,
         };
         for y in 0..h {

@@ -38,6 +38,19 @@ fn frames(world: &World, c: &Config, n: u32) -> Pipeline {
 }
 
 /// Relative MSE: per pixel and channel (x - r)^2 / (r^2 + 0.01), averaged.
+/// The reference path tracer's image of `c`'s view at 1024 spp (each pixel's mean).
+fn reference(world: &World, c: &Config) -> Vec<glam::Vec3> {
+    let film = render(
+        world,
+        &world.camera(c),
+        &Config {
+            spp: 1024,
+            ..c.clone()
+        },
+    );
+    film.pixels.iter().map(|p| p.mean).collect()
+}
+
 fn relmse(a: &[glam::Vec3], reference: &[glam::Vec3]) -> f64 {
     a.iter()
         .zip(reference)
@@ -71,8 +84,7 @@ fn the_filter_keeps_the_history_and_lowers_the_error() {
     f.frame.filter.method = Method::DataDriven;
     f.frame.filter.kernel = 9;
     let (plain, filtered) = (frames(&world, &c, 8), frames(&world, &f, 8));
-    let reference = render(&world, &world.camera(&c), &Config { spp: 1024, ..c });
-    let reference: Vec<glam::Vec3> = reference.pixels.iter().map(|p| p.mean).collect();
+    let reference = reference(&world, &c);
     let (before, after) = (
         relmse(&plain.image(), &reference),
         relmse(&filtered.image(), &reference),
@@ -148,15 +160,7 @@ fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
     sure.frame.filter.sure = true;
     let (blurred, blended) = (frames(&world, &loose, 64), frames(&world, &sure, 64));
     let plain = frames(&world, &config(Method::None), 64);
-    let reference = render(
-        &world,
-        &world.camera(&loose),
-        &Config {
-            spp: 1024,
-            ..loose.clone()
-        },
-    );
-    let reference: Vec<glam::Vec3> = reference.pixels.iter().map(|p| p.mean).collect();
+    let reference = reference(&world, &loose);
     let (unfiltered, before, after) = (
         relmse(&plain.image(), &reference),
         relmse(&blurred.image(), &reference),
@@ -205,15 +209,7 @@ fn svgf_brings_single_sample_frames_close_to_the_reference() {
     c.frame.accumulate = false;
     let mut s = c.clone();
     s.frame.filter.method = Method::Svgf;
-    let reference = render(
-        &world,
-        &world.camera(&c),
-        &Config {
-            spp: 1024,
-            ..c.clone()
-        },
-    );
-    let reference: Vec<glam::Vec3> = reference.pixels.iter().map(|p| p.mean).collect();
+    let reference = reference(&world, &c);
     let plain = frames(&world, &c, 16);
     let run = |threads| in_pool(threads, || frames(&world, &s, 16).image());
     let filtered = run(2);
