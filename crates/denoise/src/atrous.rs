@@ -21,12 +21,20 @@
 //! one `max` (the test of `MIN_WEIGHT` drops what the floor admits); and the group's
 //! reciprocals (of the weights' sum, of the depth test's scales) are the processor's estimate
 //! refined by a Newton step ([`F32xN::recip`]) instead of divisions, which one unit runs one
-//! at a time. So the lanes agree with the scalar pass to rounding, not bit for bit.
+//! at a time. A tap's weight is one power of two, `2^(log2(h) + w_z + 128 log2(n.n') + w_l)`
+//! (the kernel's weight `h`, the depth test's exponent and the luminance test's in base 2), so
+//! the normal's `(n.n')^128` (seven squarings) and two products a signal become four fused
+//! multiply-adds of `log2(1 - u)`'s series ([`log2_normal_weight_lanes`]; the scalar pass
+//! keeps the paper's power; they agree to 1e-5 wherever a weight counts), and the 3x3
+//! kernel's eight taps are written out, so their constants stay in registers (the a-trous
+//! passes 15% faster together, BENCHMARKS.md "Speed"). So the lanes agree with the scalar
+//! pass to rounding, not bit for bit.
 
 use pathlight_core::color::LUMINANCE;
 use rayon::prelude::*;
+use std::f32::consts::LOG2_E;
 
-use crate::simd::{dispatch, exp_neg_in_range, store_first, F32xN, Isa, Kernel, LANES};
+use crate::simd::{dispatch, exp2_neg_in_range, store_first, F32xN, Isa, Kernel, LANES};
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
@@ -396,19 +404,22 @@ impl Planes {
         let row = |g: &Grid, kx: i64, ky: i64| {
             (g.at(kx * step as i64, ky * step as i64, 0) as isize) - g.at(0, 0, 0) as isize
         };
-        let taps = (-r..=r)
+        let taps: Vec<Tap> = (-r..=r)
             .flat_map(|ky| (-r..=r).map(move |kx| (kx, ky)))
             .filter(|&k| k != (0, 0))
             .map(|(kx, ky)| Tap {
                 fixed: row(&self.fixed, kx, ky),
                 moving: row(&g, kx, ky),
-                kernel: h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize],
+                log2_kernel: (h[kx.unsigned_abs() as usize] * h[ky.unsigned_abs() as usize]).log2(),
                 distance: SQUARED_DISTANCES
                     .iter()
                     .position(|&d| d == kx * kx + ky * ky)
                     .expect("a 3x3 or 5x5 tap"),
             })
             .collect();
+        // The 3x3 kernel's taps, row by row, at distances 1 (sides) and sqrt 2 (corners):
+        // `Pass::sums` writes them out in this order.
+        debug_assert!(kernel != 3 || taps.iter().map(|t| t.distance).eq([1, 0, 1, 0, 0, 1, 0, 1]));
         let pass = Pass {
             taps,
             fixed: self.fixed,
@@ -459,7 +470,8 @@ struct Pass<'a> {
 struct Tap {
     fixed: isize,
     moving: isize,
-    kernel: f32,
+    /// The kernel's weight, as a power of two.
+    log2_kernel: f32,
     /// Index of the tap's distance in [`SQUARED_DISTANCES`] (and the depth terms).
     distance: usize,
 }
@@ -621,7 +633,8 @@ impl Pass<'_> {
             light: [[kc; 3]; S],
         };
         let mut lc = [kc; S];
-        // The luminance test's `-1 / (sigma_l sqrt(g(var)) + 1e-4)`, g the variance's 3x3
+        // The luminance test's `-log2(e) / (sigma_l sqrt(g(var)) + 1e-4)` (its exponent in
+        // base 2), g the variance's 3x3
         // Gaussian over the pixels inside the image (the scalar pass's: the border's zeros add
         // nothing, and plane `SUM` holds the same normalisation, summed in the same order).
         let mut minus_inv = [kc; S];
@@ -636,11 +649,12 @@ impl Pass<'_> {
             for &(dx, dy, k) in &BLUR {
                 g = self.dy::<V>(v + sig, x0 + dx, y + dy).mul_add(splat(k), g);
             }
-            minus_inv[sig] = splat(-1.0) / (splat(self.sigma_l) * (g / sum).sqrt() + splat(1e-4));
+            minus_inv[sig] =
+                splat(-LOG2_E) / (splat(self.sigma_l) * (g / sum).sqrt() + splat(1e-4));
         }
         let step = self.step;
-        // The depth test's `-1 / (sigma_z |grad z| |p - q| + 1e-4 z)` for the distances the
-        // taps have (|k|^2 = 1, 2, and with the 5x5 kernel 4, 5, 8).
+        // The depth test's `-log2(e) / (sigma_z |grad z| |p - q| + 1e-4 z)` (base 2) for the
+        // distances the taps have (|k|^2 = 1, 2, and with the 5x5 kernel 4, 5, 8).
         let mut minus_rz = [kc; 5];
         for (d, rz) in minus_rz
             .iter_mut()
@@ -650,42 +664,101 @@ impl Pass<'_> {
             let distance = (SQUARED_DISTANCES[d] as f32).sqrt() * step as f32;
             // Finite and positive wherever the centre does not pass through (the others'
             // lanes are replaced by the centre's own values).
-            *rz = (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc).recip() * splat(-1.0);
+            *rz = (splat(self.sigma_z * distance) * gz + splat(1e-4) * zc).recip() * splat(-LOG2_E);
         }
-        let (floor, zero, min) = (splat(-30.0), splat(0.0), splat(MIN_WEIGHT));
+        let cut = Cut {
+            floor: splat(-30.0 * LOG2_E),
+            min: splat(MIN_WEIGHT),
+        };
         let (cf, cm) = (self.fixed.at(x0, y, 0), self.moving.at(x0, y, 0));
-        for tap in &self.taps {
-            let minus_rz = minus_rz[tap.distance];
-            let (qf, qm) = (
-                cf.wrapping_add_signed(tap.fixed),
-                cm.wrapping_add_signed(tap.moving),
-            );
-            let kernel = splat(tap.kernel);
-            let wz = (self.st_at::<V>(Z, qf) - zc).abs() * minus_rz;
-            let cos = self.st_at::<V>(NX, qf) * nc[0];
-            let cos = self.st_at::<V>(NX + 1, qf).mul_add(nc[1], cos);
-            let cos = self.st_at::<V>(NX + 2, qf).mul_add(nc[2], cos);
-            let wn = normal_weight_lanes(cos);
-            let kw = kernel * wn;
-            for sig in 0..S {
-                let lq: V = self.dy_at(lum + sig, qm);
-                let e = (lq - lc[sig]).abs().mul_add(minus_inv[sig], wz);
-                // Every lane's product is worked out, so none may be subnormal: e at least
-                // -30, kw (with the normal weight's cut) at least 1.6e-15. Below -30 (or NaN)
-                // the weight is at most e^-30 = 9.4e-14 (kw is at most 1), under
-                // `MIN_WEIGHT`: 0, as the scalar pass's `e > -30` test gives.
-                let t = kw * exp_neg_in_range(e.at_least(floor));
-                let wq = V::select(t.ge(min), t, zero);
-                s.w[sig] = s.w[sig] + wq;
-                for k in 0..3 {
-                    let l: V = self.dy_at(L + 3 * sig + k, qm);
-                    s.light[sig][k] = l.mul_add(wq, s.light[sig][k]);
-                }
-                s.var[sig] = (self.dy_at::<V>(v + sig, qm) * wq).mul_add(wq, s.var[sig]);
+        let centre = Centre {
+            zc,
+            nc,
+            lc,
+            minus_inv,
+            cf,
+            cm,
+        };
+        if R == 1 {
+            // The 3x3 kernel's eight taps written out: the distances' depth terms and the
+            // kernel's weights stay in registers (as a loop they were reloaded, and the
+            // sums spilled, at every tap).
+            let [a, b, c, d, e, f, g, h]: &[Tap; 8] =
+                self.taps[..].try_into().expect("a 3x3 kernel's taps");
+            let (side, corner) = (minus_rz[0], minus_rz[1]);
+            self.tap(&mut s, &centre, a, corner, &cut);
+            self.tap(&mut s, &centre, b, side, &cut);
+            self.tap(&mut s, &centre, c, corner, &cut);
+            self.tap(&mut s, &centre, d, side, &cut);
+            self.tap(&mut s, &centre, e, side, &cut);
+            self.tap(&mut s, &centre, f, corner, &cut);
+            self.tap(&mut s, &centre, g, side, &cut);
+            self.tap(&mut s, &centre, h, corner, &cut);
+        } else {
+            for tap in &self.taps {
+                self.tap(&mut s, &centre, tap, minus_rz[tap.distance], &cut);
             }
         }
         s
     }
+
+    /// Adds `tap` of the centres `c` to the sums `s` of `S` signals (`minus_rz`: the depth
+    /// test's term at the tap's distance).
+    #[inline(always)]
+    fn tap<V: F32xN, const S: usize>(
+        &self,
+        s: &mut Sums<V, S>,
+        c: &Centre<V, S>,
+        tap: &Tap,
+        minus_rz: V,
+        cut: &Cut<V>,
+    ) {
+        let (v, lum) = (v(S), lum(S));
+        let (qf, qm) = (
+            c.cf.wrapping_add_signed(tap.fixed),
+            c.cm.wrapping_add_signed(tap.moving),
+        );
+        // The tap's weight but the luminance test's, as a power of two: the kernel's, the
+        // depth test's and the normal's, `cos^128` = `2^(128 log2(cos))`.
+        let z = (self.st_at::<V>(Z, qf) - c.zc).abs();
+        let base = z.mul_add(minus_rz, V::splat(tap.log2_kernel));
+        let cos = self.st_at::<V>(NX, qf) * c.nc[0];
+        let cos = self.st_at::<V>(NX + 1, qf).mul_add(c.nc[1], cos);
+        let cos = self.st_at::<V>(NX + 2, qf).mul_add(c.nc[2], cos);
+        let g = log2_normal_weight_lanes(cos, base);
+        for sig in 0..S {
+            let lq: V = self.dy_at(lum + sig, qm);
+            let e = (lq - c.lc[sig]).abs().mul_add(c.minus_inv[sig], g);
+            // Every lane's product is worked out, so none may be subnormal: the exponent at
+            // least -30 log2(e), a weight of 9.4e-14, under `MIN_WEIGHT`: 0, as the scalar
+            // pass's `e > -30` test gives (a NaN exponent is floored too).
+            let t = exp2_neg_in_range(e.at_least(cut.floor));
+            let wq = V::select(t.ge(cut.min), t, V::splat(0.0));
+            s.w[sig] = s.w[sig] + wq;
+            for k in 0..3 {
+                let l: V = self.dy_at(L + 3 * sig + k, qm);
+                s.light[sig][k] = l.mul_add(wq, s.light[sig][k]);
+            }
+            s.var[sig] = (self.dy_at::<V>(v + sig, qm) * wq).mul_add(wq, s.var[sig]);
+        }
+    }
+}
+
+/// What a group's taps compare with: its centres' depth, normal, luminances and the
+/// luminance test's scales, and where they lie in each layout.
+struct Centre<V, const S: usize> {
+    zc: V,
+    nc: [V; 3],
+    lc: [V; S],
+    minus_inv: [V; S],
+    cf: usize,
+    cm: usize,
+}
+
+/// A tap's exponent's floor and the weight below which it counts for nothing, in lanes.
+struct Cut<V> {
+    floor: V,
+    min: V,
 }
 
 /// A tap's weight below which it counts for nothing (the centre's is at least 9/64, so a
@@ -722,6 +795,24 @@ pub(crate) fn flush_variance_lanes<V: F32xN>(variance: V) -> V {
 
 /// Below this cosine the normal weight is 0 (`0.8^128` is 4e-13, under [`MIN_WEIGHT`]).
 const MIN_COSINE: f32 = 0.8;
+
+/// `base + 128 log2(cos)`, the normal weight's [`normal_weight`] exponent in base 2 added to
+/// `base`, in lanes, `u = 1 - cos`: `log2(1 - u)` by its series to `u^4`. What it leaves out
+/// is about `128 u^5 / 5` of the natural exponent, a weight's relative error of 8e-6 at `u =
+/// 0.05` (where the weight is 1.4e-3 of an equal normal's), under the exponential's own 2e-5
+/// wherever a weight counts. Below a cosine of [`MIN_COSINE`] (and for NaN) it is -100: a
+/// weight of 0.
+#[inline(always)]
+pub(crate) fn log2_normal_weight_lanes<V: F32xN>(cos: V, base: V) -> V {
+    const K: f32 = 128.0 * LOG2_E;
+    let u = V::splat(1.0) - cos;
+    // base + 128 log2(1 - u) = base - K (u + u^2 / 2 + u^3 / 3 + u^4 / 4), by Horner.
+    let a = V::splat(-K / 4.0).mul_add(u, V::splat(-K / 3.0));
+    let a = a.mul_add(u, V::splat(-K / 2.0));
+    let a = a.mul_add(u, V::splat(-K));
+    let e = a.mul_add(u, base);
+    V::select(cos.ge(V::splat(MIN_COSINE)), e, V::splat(-100.0))
+}
 
 /// [`normal_weight`] in lanes.
 #[inline(always)]

@@ -72,6 +72,21 @@ pub trait F32xN:
     fn all(m: Self::Mask) -> bool;
     /// `a` where `m`, else `b`.
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// The smallest lane (of lanes that are numbers).
+    #[inline(always)]
+    fn min_lane(self) -> f32 {
+        let a = self.to_array();
+        let mut m = a[0];
+        for &x in &a[1..Self::N] {
+            m = m.min(x);
+        }
+        m
+    }
+    /// The largest lane (of lanes that are numbers).
+    #[inline(always)]
+    fn max_lane(self) -> f32 {
+        -(Self::splat(0.0) - self).min_lane()
+    }
     /// `*base.add(index * stride)` in the lanes where `m`, 0 in the others (not read); the
     /// indices are whole numbers in `0..2^24` (exact in an `f32`).
     ///
@@ -105,6 +120,95 @@ pub trait F32xN:
     unsafe fn load_interleaved<const K: usize>(p: *const f32) -> [Self; K] {
         // SAFETY: the caller's contract.
         unsafe { gather_interleaved(p) }
+    }
+    /// `p[index]` in each lane, `index` whole numbers in `0..2N`: the `2N` floats from `p` on
+    /// loaded and permuted (two loads and one permutation where the processor has it; a
+    /// gather reads the same). For a group's taps that fall within `2N` pixels of one row.
+    ///
+    /// # Safety
+    /// `p..p + 2N` is readable.
+    #[inline(always)]
+    unsafe fn window(p: *const f32, index: Self) -> Self {
+        let all = index.ge(Self::splat(0.0));
+        // SAFETY: the caller's contract (every index is in `0..2N`).
+        unsafe { Self::gather(p, index, 1, all) }
+    }
+}
+
+/// How a group reads the fields of pixels `(qx, qy)` of a row-major layout (a previous frame
+/// reprojected: taps that move with the camera): by loads where the lanes take consecutive
+/// pixels of one row, by two loads permuted ([`F32xN::window`]) where they lie within `2N`
+/// pixels of one row (a rotation's motion, which varies along the row: most of the taps that
+/// are not consecutive), else by gathers.
+#[derive(Clone, Copy)]
+pub(crate) enum Fetch<V> {
+    /// Lane 0's field 0 at this index, the others after it.
+    Run(usize),
+    /// The lanes' fields 0 at this index plus these offsets (in `0..2N`).
+    Window(usize, V),
+    /// Gathers.
+    Gather,
+}
+
+impl<V: F32xN> Fetch<V> {
+    /// For the pixels `(qx, qy)` of the lanes where `inside` (whole numbers inside the
+    /// image), in a layout of `len` floats whose pixel `(x, y)` has its field 0 at `y pitch +
+    /// x` and its last field `reach` floats further on.
+    #[inline(always)]
+    pub fn new(qx: V, qy: V, inside: V::Mask, pitch: usize, reach: usize, len: usize) -> Self {
+        // The rows and columns of the lanes inside (the others count as the first's).
+        let (inf, minf) = (V::splat(f32::INFINITY), V::splat(f32::NEG_INFINITY));
+        let (row, last) = (
+            V::select(inside, qy, inf).min_lane(),
+            V::select(inside, qy, minf).max_lane(),
+        );
+        if row != last || !row.is_finite() {
+            return Self::Gather;
+        }
+        let (low, high) = (
+            V::select(inside, qx, inf).min_lane(),
+            V::select(inside, qx, minf).max_lane(),
+        );
+        let at = row as usize * pitch + low as usize;
+        if V::all(inside) && !V::any(qx.ne(V::splat(low) + iota::<V>())) {
+            Self::Run(at)
+        } else if high - low < (2 * V::N) as f32 && at + reach + 2 * V::N <= len {
+            Self::Window(at, V::select(inside, qx - V::splat(low), V::splat(0.0)))
+        } else {
+            Self::Gather
+        }
+    }
+
+    /// The field `offset` floats from field 0 of the pixels `(qx, qy)` in the lanes where `m`
+    /// (some of those `Self::new` was given), 0 in the others.
+    ///
+    /// # Safety
+    /// `planes` is the layout `Self::new` was given, `offset` at most its `reach`, `pitch`
+    /// its, and `qy pitch + qx + offset` of each lane where `m` is in `planes` and fits an
+    /// `i32`.
+    #[inline(always)]
+    pub unsafe fn read(
+        self,
+        planes: &[f32],
+        offset: usize,
+        qx: V,
+        qy: V,
+        pitch: usize,
+        m: V::Mask,
+    ) -> V {
+        match self {
+            Self::Run(at) => V::select(m, load_first(&planes[at + offset..]), V::splat(0.0)),
+            Self::Window(at, index) => {
+                assert!(at + offset + 2 * V::N <= planes.len());
+                // SAFETY: the `2N` floats from `at + offset` on are in `planes` (just checked).
+                let v = unsafe { V::window(planes.as_ptr().add(at + offset), index) };
+                V::select(m, v, V::splat(0.0))
+            }
+            // SAFETY: the caller's contract.
+            Self::Gather => unsafe {
+                V::gather_rows(planes.as_ptr().add(offset), qy, qx, pitch as i32, m)
+            },
+        }
     }
 }
 
@@ -335,8 +439,14 @@ pub fn exp_neg<V: F32xN>(x: V) -> V {
 /// [`exp_neg`] of lanes the caller has kept within `LOWEST..=0` (not NaN).
 #[inline(always)]
 pub fn exp_neg_in_range<V: F32xN>(x: V) -> V {
+    exp2_neg_in_range(x * V::splat(std::f32::consts::LOG2_E))
+}
+
+/// `2^t` of lanes the caller has kept within `LOWEST log2(e)..=0` (not NaN): [`exp_neg`]'s
+/// power of two and polynomial, for a caller whose exponent is already in base 2.
+#[inline(always)]
+pub fn exp2_neg_in_range<V: F32xN>(t: V) -> V {
     use crate::exp::EXP2_POLY;
-    let t = x * V::splat(std::f32::consts::LOG2_E);
     let i = t.floor();
     let f = t - i;
     // No closures in the lanes' code: the compiler compiles a closure apart, without the
@@ -520,6 +630,23 @@ impl F32xN for Avx512 {
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
         Self(avx512!(_mm512_loadu_ps(p)))
+    }
+    #[inline(always)]
+    fn min_lane(self) -> f32 {
+        avx512!(_mm512_reduce_min_ps(self.0))
+    }
+    #[inline(always)]
+    fn max_lane(self) -> f32 {
+        avx512!(_mm512_reduce_max_ps(self.0))
+    }
+    #[inline(always)]
+    unsafe fn window(p: *const f32, index: Self) -> Self {
+        // `vpermt2ps` takes each lane's index modulo 32.
+        Self(avx512!(_mm512_permutex2var_ps(
+            _mm512_loadu_ps(p),
+            _mm512_cvttps_epi32(index.0),
+            _mm512_loadu_ps(p.add(16))
+        )))
     }
     #[inline(always)]
     unsafe fn store(self, p: *mut f32) {
@@ -735,6 +862,18 @@ impl F32xN for Avx2 {
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
         Self(avx2!(_mm256_loadu_ps(p)))
+    }
+    #[inline(always)]
+    unsafe fn window(p: *const f32, index: Self) -> Self {
+        // Each half permuted by the index modulo 8, then the second half's where the index
+        // is 8 or more.
+        let i = avx2!(_mm256_cvttps_epi32(index.0));
+        let (low, high) = (
+            avx2!(_mm256_permutevar8x32_ps(_mm256_loadu_ps(p), i)),
+            avx2!(_mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(8)), i)),
+        );
+        let upper = avx2!(_mm256_cmp_ps::<_CMP_GE_OQ>(index.0, _mm256_set1_ps(8.0)));
+        Self(avx2!(_mm256_blendv_ps(low, high, upper)))
     }
     #[inline(always)]
     unsafe fn store(self, p: *mut f32) {

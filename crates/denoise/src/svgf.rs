@@ -80,7 +80,7 @@ use crate::features::{demodulator, demodulator_lanes};
 use crate::history::{History, State, DEPTH, FIELDS, LENGTH, LIGHT, MOMENTS, NORMAL, WEIGHTS2};
 use crate::simd::{
     channels, dispatch, exp_neg_in_range, gather3, iota, load_first, luminance_lanes, max, min,
-    store_first, ByGroups, F32xN, Floats, Groups, LANES,
+    store_first, ByGroups, F32xN, Fetch, Floats, Groups, LANES,
 };
 use crate::taa::Taa;
 use crate::{simd, FilterError};
@@ -680,9 +680,11 @@ fn narrowing(f: &SvgfFrame, weights2: f32, i: usize, converge: bool) -> f32 {
 /// variance and luminance into `row`, the pixels' states into `next` (the row's planes of the
 /// history; their light left for the first a-trous pass); whether some pixel's history is
 /// [`short`]. The same arithmetic in the same order, so the same numbers; the previous frame's
-/// taps are loads where the group's lanes take consecutive pixels of one row, else gathers of
-/// the lanes that pass the tests, and a tap no lane takes (a still camera's three others) is
-/// skipped. (No closures here: see `simd::exp_neg`.)
+/// taps are read as [`Fetch`] says (loads where the group's lanes take consecutive pixels of
+/// one row; two loads permuted where they lie within `2N` pixels of one row, as most of a
+/// rotating camera's do; else gathers of the lanes that pass the tests), and a tap no lane
+/// takes (a still camera's three others) is skipped. (No closures here: see
+/// `simd::exp_neg`.)
 struct Temporal<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     previous: &'a History,
@@ -696,20 +698,14 @@ struct Temporal<'a, 'f> {
 
 impl Temporal<'_, '_> {
     /// Field `k` of the previous frame's history at pixels `(qx, qy)` in the lanes where `m`,
-    /// 0 in the others: one load where the lanes are consecutive pixels of one row (`run`, the
-    /// index of lane 0's field 0 in the planes), else a gather.
+    /// 0 in the others, read as `fetch` says.
     #[inline(always)]
-    fn field<V: F32xN>(&self, k: usize, qx: V, qy: V, run: Option<usize>, m: V::Mask) -> V {
+    fn field<V: F32xN>(&self, k: usize, qx: V, qy: V, fetch: Fetch<V>, m: V::Mask) -> V {
         let (planes, w) = (self.previous.planes(), self.f.width);
-        match run {
-            Some(at) => V::select(m, load_first(&planes[at + k * w..]), V::splat(0.0)),
-            // SAFETY: the lanes where `m` index pixels of the previous frame (`qx` in `0..w`,
-            // `qy` in `0..h`, whole numbers): their field `k` is within the planes, whose
-            // `FIELDS` floats a pixel fit an `i32` (the image has under 2^24 pixels).
-            None => unsafe {
-                V::gather_rows(planes.as_ptr().add(k * w), qy, qx, (FIELDS * w) as i32, m)
-            },
-        }
+        // SAFETY: the lanes where `m` are pixels of the previous frame (`qx` in `0..w`, `qy`
+        // in `0..h`, whole numbers): their field `k` is within the planes, whose `FIELDS`
+        // floats a pixel fit an `i32` (the image has under 2^24 pixels).
+        unsafe { fetch.read(planes, k * w, qx, qy, FIELDS * w, m) }
     }
 }
 
@@ -790,17 +786,14 @@ impl Groups for Temporal<'_, '_> {
             if !V::any(inside) {
                 continue;
             }
-            // Every lane inside, at consecutive pixels of one row: loads.
-            let run = if V::all(inside) {
-                let (x, y) = (qx.to_array()[0], qy.to_array()[0]);
-                if V::any(qx.ne(splat(x) + lane)) || V::any(qy.ne(splat(y))) {
-                    None
-                } else {
-                    Some(y as usize * FIELDS * w + x as usize)
-                }
-            } else {
-                None
-            };
+            let run = Fetch::new(
+                qx,
+                qy,
+                inside,
+                FIELDS * w,
+                (FIELDS - 1) * w,
+                self.previous.planes().len(),
+            );
             let (length, pdepth) = (
                 self.field(LENGTH, qx, qy, run, inside),
                 self.field(DEPTH, qx, qy, run, inside),

@@ -20,19 +20,32 @@
 //! 1 and 0.1, which blur more behind a moving camera: FLIP rose 10%); a pixel whose every tap
 //! falls outside the image, or whose motion is not finite, takes this frame's value.
 //!
-//! The blend runs in lanes ([`F32xN`], 16 pixels at a time with AVX-512: the box's sums,
-//! this frame's pixels and the history's taps gathered), the same arithmetic in the same
-//! order as the scalar `pixel`, which stays the reference it is tested against bit for bit
-//! (and runs for images of 2^24 pixels or more, whose indices an `f32` lane does not hold).
+//! The blend runs in lanes ([`F32xN`], 16 pixels at a time with AVX-512), the same
+//! arithmetic in the same order as the scalar `pixel`, which stays the reference it is tested
+//! against bit for bit (and runs for images of 2^24 pixels or more, whose indices an `f32`
+//! lane does not hold). The box's sums along rows are planes, three rows of which a group
+//! loads (they were records, gathered); the history keeps its three channels as planes a row
+//! (SVGF's history's layout), whose taps a group reads as `simd::Fetch` says: loads
+//! where they are consecutive pixels, two loads permuted where they lie on one row, gathers
+//! elsewhere; each row's output replaces its input in place (no copy). 3.3 -> 2.6 ms at
+//! 640x360 (BENCHMARKS.md "Speed").
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::simd::{
-    self, channels, dispatch, gather3, iota, luminance_lanes, max, min, ByGroups, F32xN, Groups,
-    Isa,
+    self, channels, dispatch, iota, load_first, luminance_lanes, max, min, ByGroups, F32xN, Fetch,
+    Groups, Isa, LANES,
 };
+
+/// The sums of a pixel's 3x3 box: its values (compressed, in YCoCg), their squares, the count.
+const SUMS: usize = 7;
+
+/// The length of a plane of the rows' sums of an image `width` pixels wide.
+fn pitch(width: usize) -> usize {
+    width + LANES
+}
 
 /// The weight of this frame's value in the blend (chosen on the orbits of the Cornell box and
 /// the garden among 0.1, 0.2 and 0.3, BENCHMARKS.md).
@@ -46,15 +59,18 @@ const GAMMA: f32 = 0.5;
 pub struct Taa {
     width: usize,
     height: usize,
-    /// Last frame's output (empty: none).
-    history: Vec<Vec3>,
-    /// This frame's.
-    next: Vec<Vec3>,
+    /// Last frame's output (empty: none), its three channels a row after one another (row
+    /// `y`'s channel `c` from `(3 y + c) width` on, as SVGF's history), then `2 LANES`
+    /// zeros (whole loads of lanes past the last row).
+    history: Vec<f32>,
+    /// This frame's, for the next.
+    next: Vec<f32>,
     /// This frame's pixels compressed and in YCoCg, and 1 (0 for a pixel that is not finite:
     /// its four values are 0).
     ycocg: Vec<[f32; 4]>,
-    /// Their sums along each row's 3 pixels: the values, their squares and the count.
-    rows: Vec<[f32; 7]>,
+    /// Their sums along each row's 3 pixels: the values, their squares and the count, as
+    /// seven planes a row, each [`pitch`] long (the tail zeros: whole loads of lanes).
+    rows: Vec<f32>,
     /// The blend in scalar code (the reference the lanes are tested against).
     scalar: bool,
     /// The widest lanes the blend uses (narrower ones for tests).
@@ -85,15 +101,20 @@ impl Taa {
     pub fn apply(&mut self, image: &mut [Vec3], motion: &[Vec2], width: usize, height: usize) {
         let n = width * height;
         debug_assert!(image.len() == n && motion.len() == n);
-        if (self.width, self.height) != (width, height) || self.history.len() != n {
+        let len = 3 * n + 2 * LANES;
+        if (self.width, self.height) != (width, height) || self.history.len() != len {
             (self.width, self.height) = (width, height);
-            self.history.clear();
-            self.history.extend_from_slice(image);
+            self.history.resize(len, 0.0);
+            self.history[..3 * n]
+                .par_chunks_mut(3 * width)
+                .zip(image.par_chunks(width))
+                .for_each(|(planes, row)| keep_row(row, planes));
             return;
         }
-        self.next.resize(n, Vec3::ZERO);
+        self.next.resize(len, 0.0);
         self.ycocg.resize(n, [0.0; 4]);
-        self.rows.resize(n, [0.0; 7]);
+        let pitch = pitch(width);
+        self.rows.resize(SUMS * pitch * height, 0.0);
         (&mut self.ycocg, &*image)
             .into_par_iter()
             .for_each(|(q, c)| {
@@ -106,11 +127,11 @@ impl Taa {
             });
         let values = &self.ycocg;
         self.rows
-            .par_chunks_mut(width)
+            .par_chunks_mut(SUMS * pitch)
             .enumerate()
             .for_each(|(y, row)| {
                 let values = &values[y * width..(y + 1) * width];
-                for (x, sums) in row.iter_mut().enumerate() {
+                for x in 0..width {
                     // Three taps, the border's outside one weighing 0 (a fixed form that the
                     // compiler keeps in registers).
                     let (l, r) = (x.saturating_sub(1), (x + 1).min(width - 1));
@@ -125,43 +146,57 @@ impl Taa {
                         acc[3 + k] = a[k] * a[k] * wl + c[k] * c[k] + b[k] * b[k] * wr;
                     }
                     acc[6] = a[3] * wl + c[3] + b[3] * wr;
-                    *sums = acc;
+                    for (k, a) in acc.into_iter().enumerate() {
+                        row[k * pitch + x] = a;
+                    }
                 }
             });
-        let (history, current, rows) = (&self.history, &*image, &self.rows);
+        let (history, rows) = (&self.history, &self.rows);
         // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
         let (lanes, isa) = (!self.scalar && n < 1 << 24, self.isa);
         let size = (width, height);
-        self.next
+        // Each row's output in place of its input (a pixel reads only its own value; its
+        // neighbourhood is in `rows`), and kept for the next frame.
+        image
             .par_chunks_mut(width)
+            .zip(self.next[..3 * n].par_chunks_mut(3 * width))
             .enumerate()
-            .for_each(|(y, out)| {
+            .for_each(|(y, (out, kept))| {
                 if lanes {
                     let b = Blend {
-                        current,
                         history,
                         motion,
                         rows,
+                        pitch,
                         size,
                         y,
                         out,
                     };
                     dispatch(isa, ByGroups(b));
-                    return;
-                }
-                for (x, out) in out.iter_mut().enumerate() {
-                    let i = y * width + x;
-                    let mut sums = [0.0f32; 7];
-                    for qy in y.saturating_sub(1)..(y + 2).min(height) {
-                        for (s, r) in sums.iter_mut().zip(&rows[qy * width + x]) {
-                            *s += r;
+                } else {
+                    for (x, out) in out.iter_mut().enumerate() {
+                        let mut sums = [0.0f32; 7];
+                        for qy in y.saturating_sub(1)..(y + 2).min(height) {
+                            for (k, s) in sums.iter_mut().enumerate() {
+                                *s += rows[(qy * SUMS + k) * pitch + x];
+                            }
                         }
+                        *out = pixel(*out, &sums, history, motion[y * width + x], size, (x, y));
                     }
-                    *out = pixel(current[i], &sums, history, motion[i], size, (x, y));
                 }
+                keep_row(out, kept);
             });
-        image.copy_from_slice(&self.next);
         std::mem::swap(&mut self.history, &mut self.next);
+    }
+}
+
+/// Image row `row` into its three planes `planes` of the history's layout.
+fn keep_row(row: &[Vec3], planes: &mut [f32]) {
+    let w = row.len();
+    for (c, plane) in planes.chunks_exact_mut(w).enumerate() {
+        for (p, v) in plane.iter_mut().zip(row) {
+            *p = v[c];
+        }
     }
 }
 
@@ -170,7 +205,7 @@ impl Taa {
 fn pixel(
     c: Vec3,
     sums: &[f32; 7],
-    history: &[Vec3],
+    history: &[f32],
     motion: Vec2,
     size: (usize, usize),
     at: (usize, usize),
@@ -211,10 +246,10 @@ fn expand(c: Vec3) -> Vec3 {
 /// the same arithmetic in the same order, so the same numbers. (No closures here: see
 /// `simd::exp_neg`.)
 struct Blend<'a> {
-    current: &'a [Vec3],
-    history: &'a [Vec3],
+    history: &'a [f32],
     motion: &'a [Vec2],
-    rows: &'a [[f32; 7]],
+    rows: &'a [f32],
+    pitch: usize,
     size: (usize, usize),
     y: usize,
     out: &'a mut [Vec3],
@@ -235,16 +270,16 @@ impl Groups for Blend<'_> {
         let valid = splat(n as f32).gt(lane);
         let xs = splat(x0 as f32) + lane;
         // The 3x3 box's sums: the rows' sums of the rows around.
-        let rows = self.rows.as_ptr().cast::<f32>();
-        let mut sums = [zero; 7];
+        let pitch = self.pitch;
+        let mut sums = [zero; SUMS];
         for qy in y.saturating_sub(1)..(y + 2).min(h) {
-            let q = splat((qy * w) as f32) + xs;
+            let row = &self.rows[qy * SUMS * pitch..];
             for (k, s) in sums.iter_mut().enumerate() {
-                // SAFETY: the lanes where `valid` index pixels of the image (row `qy`).
-                *s = *s + unsafe { V::gather(rows.add(k), q, 7, valid) };
+                // (Past the row's end the planes' tails are zeros.)
+                *s = *s + load_first::<V>(&row[k * pitch + x0..]);
             }
         }
-        let c: [V; 3] = channels(self.current, y * w + x0, n);
+        let c: [V; 3] = channels(self.out, x0, n);
         let [mx, my] = channels(self.motion, y * w + x0, n);
         // The history's bilinear value ([`reproject`]).
         let (px, py) = (xs + mx, splat(y as f32) + my);
@@ -265,9 +300,18 @@ impl Groups for Blend<'_> {
             if !V::any(inside) {
                 continue;
             }
-            // SAFETY: the lanes where `inside` index pixels of the history (as large as the
-            // image).
-            let t = unsafe { gather3(self.history, qy * splat(w as f32) + qx, inside) };
+            let fetch = Fetch::new(qx, qy, inside, 3 * w, 2 * w, self.history.len());
+            // SAFETY: the lanes where `inside` are pixels of the image (`qx` in `0..w`, `qy`
+            // in `0..h`, whole numbers), whose three channels are in the history (as large as
+            // the image's), at indices under 2^24 + 2^25.
+            // (No closures here: see `simd::exp_neg`.)
+            let t: [V; 3] = unsafe {
+                [
+                    fetch.read(self.history, 0, qx, qy, 3 * w, inside),
+                    fetch.read(self.history, w, qx, qy, 3 * w, inside),
+                    fetch.read(self.history, 2 * w, qx, qy, 3 * w, inside),
+                ]
+            };
             let take = V::and(inside, simd::finite3(t));
             for (s, t) in sum.iter_mut().zip(t) {
                 *s = V::select(take, *s + t * wt, *s);
@@ -341,7 +385,7 @@ fn rgb_lanes<V: F32xN>(c: [V; 3]) -> [V; 3] {
 /// The history's bilinear value at pixel `(x, y)`'s previous place, `None` where no tap lies
 /// in the image (or the motion or the history there is not finite).
 fn reproject(
-    history: &[Vec3],
+    history: &[f32],
     motion: Vec2,
     width: usize,
     height: usize,
@@ -365,7 +409,8 @@ fn reproject(
         if w <= 0.0 || qx < 0.0 || qy < 0.0 || qx >= width as f32 || qy >= height as f32 {
             continue;
         }
-        let h = history[qy as usize * width + qx as usize];
+        let at = qy as usize * 3 * width + qx as usize;
+        let h = Vec3::new(history[at], history[at + width], history[at + 2 * width]);
         if h.is_finite() {
             sum += h * w;
             weight += w;
@@ -485,8 +530,14 @@ mod tests {
                     }
                 })
                 .collect();
+            // Motion at random (taps on several rows: gathered), varying along the row but on
+            // one row (loads permuted), and alike (loads).
             let mut motion: Vec<Vec2> = (0..w * h)
-                .map(|_| Vec2::new(6.0 * rng.next_f32() - 3.0, 6.0 * rng.next_f32() - 3.0))
+                .map(|i| match i / w {
+                    0..4 => Vec2::new(6.0 * rng.next_f32() - 3.0, 6.0 * rng.next_f32() - 3.0),
+                    4..8 => Vec2::new(0.4 + 0.9 * (i % 4) as f32, 1.0),
+                    _ => Vec2::new(1.3, -0.6),
+                })
                 .collect();
             image[3 * w + 5] = Vec3::new(f32::NAN, 0.0, 0.0);
             image[4 * w + 9] = Vec3::splat(f32::INFINITY);

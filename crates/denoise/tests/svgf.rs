@@ -448,9 +448,16 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
                 } else {
                     Vec3::new(0.2, 0.3, 0.1)
                 };
-                // The top rows still (for `converge`).
+                // The top rows still (for `converge`); then motion that varies along a row
+                // but keeps a group's taps on one row of the previous frame (read as loads
+                // permuted), motion whose taps fall on several rows (gathered), and motion
+                // that moves whole groups alike (loads).
                 f.motion[i] = if y < h / 4 {
                     Vec2::ZERO
+                } else if y < h / 2 {
+                    Vec2::new(0.3 * k as f32 + 0.7 * (x % 5) as f32, -0.2)
+                } else if y < 2 * h / 3 {
+                    Vec2::new(0.3 * k as f32, -0.2 + 0.6 * (x % 3) as f32)
                 } else {
                     Vec2::new(0.3 * k as f32, -0.2)
                 };
