@@ -61,7 +61,7 @@ pub struct Taa {
     height: usize,
     /// Last frame's output (empty: none), its three channels a row after one another (row
     /// `y`'s channel `c` from `(3 y + c) width` on, as SVGF's history), then `2 LANES`
-    /// zeros (whole loads of lanes past the last row).
+    /// floats that only the lanes a group leaves out read (whole loads past the last row).
     history: Vec<f32>,
     /// This frame's, for the next.
     next: Vec<f32>,
@@ -69,7 +69,8 @@ pub struct Taa {
     /// its four values are 0).
     ycocg: Vec<[f32; 4]>,
     /// Their sums along each row's 3 pixels: the values, their squares and the count, as
-    /// seven planes a row, each [`pitch`] long (the tail zeros: whole loads of lanes).
+    /// seven planes a row, each [`pitch`] long (the tail read only by lanes past the row's
+    /// end, whose sums are not used: whole loads of lanes).
     rows: Vec<f32>,
     /// The blend in scalar code (the reference the lanes are tested against).
     scalar: bool,
