@@ -252,6 +252,37 @@ impl StaticRow<'_> {
     }
 }
 
+/// This frame's features' planes, read-only, which [`Planes::amend_variance`] gives to its
+/// caller: an image row's plane from its first column on (with [`LANES`] columns at least
+/// past its last).
+#[derive(Clone, Copy)]
+pub struct StaticsView<'a> {
+    statics: &'a [f32],
+    grid: Grid,
+}
+
+impl<'a> StaticsView<'a> {
+    fn plane(&self, y: usize, p: usize) -> &'a [f32] {
+        let g = &self.grid;
+        &self.statics[(y + g.pad) * g.row()..][..g.row()][plane(g, p)]
+    }
+
+    /// Row `y`'s depth along the view axis.
+    pub fn depth(&self, y: usize) -> &'a [f32] {
+        self.plane(y, Z)
+    }
+
+    /// Component `k` of row `y`'s normal (0 where the pixel passes through).
+    pub fn normal(&self, y: usize, k: usize) -> &'a [f32] {
+        self.plane(y, NX + k)
+    }
+
+    /// 1 where row `y`'s pixel passes through, else 0.
+    pub fn through(&self, y: usize) -> &'a [f32] {
+        self.plane(y, THROUGH)
+    }
+}
+
 /// One image row of the current light's planes and of the plane of the pixels that pass
 /// through, which [`Planes::for_light_rows`] gives to its caller.
 pub struct LightView<'a> {
@@ -342,21 +373,27 @@ impl Planes {
             .collect()
     }
 
-    /// Lets `amend(y, row)` amend the light's planes of the rows `y` where `rows[y]` (their
-    /// variances, where the history is short; the other rows have none).
-    pub fn amend_variance(&mut self, rows: &[bool], amend: impl Fn(usize, LightRow) + Sync) {
-        let g = self.moving;
-        let signals = self.signals;
+    /// Lets `amend(y, row, features)` amend the light's planes of the rows `y` where
+    /// `rows[y]` (their variances, where the history is short; the other rows have none),
+    /// with this frame's features' planes to read (after [`Self::load_statics_rows`]).
+    pub fn amend_variance(
+        &mut self,
+        rows: &[bool],
+        amend: impl Fn(usize, LightRow, StaticsView) + Sync,
+    ) {
+        let (g, signals) = (self.moving, self.signals);
+        let features = StaticsView {
+            statics: &self.statics,
+            grid: self.fixed,
+        };
         g.for_rows(&mut self.current, |y, row| {
             if rows[y as usize] {
-                amend(
-                    y as usize,
-                    LightRow {
-                        row,
-                        grid: g,
-                        signals,
-                    },
-                );
+                let row = LightRow {
+                    row,
+                    grid: g,
+                    signals,
+                };
+                amend(y as usize, row, features);
             }
         });
     }

@@ -73,7 +73,7 @@ use rayon::prelude::*;
 
 use crate::atrous::{
     flush_variance, flush_variance_lanes, normal_weight, normal_weight_lanes, spline, LightRow,
-    LightView, Planes, StaticRow, BLUR, MAX_PAD, MIN_WEIGHT,
+    LightView, Planes, StaticRow, StaticsView, BLUR, MAX_PAD, MIN_WEIGHT,
 };
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
@@ -287,7 +287,7 @@ impl Svgf {
                 });
             // Where the history is short, the variance from the neighbourhood's moments.
             let next = &self.next;
-            self.planes.amend_variance(&rows, |y, mut row| {
+            self.planes.amend_variance(&rows, |y, mut row, features| {
                 let signals = row.signals;
                 let out = row.variances();
                 dispatch(
@@ -295,6 +295,7 @@ impl Svgf {
                     ByGroups(SpatialVariance {
                         f,
                         next,
+                        features,
                         y,
                         out,
                         signals,
@@ -1027,12 +1028,16 @@ fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask
 /// their 7x7 neighbourhoods ([`spatial_variance`]) in lanes, [`F32xN::N`] pixels at a time,
 /// into the first `signals` of `out` (the row's variance planes); the other pixels' left as
 /// they are. A group whose window would leave the row (its first three or last three pixels)
-/// is worked out pixel by pixel. The same weights, with [`crate::simd::exp_neg`]'s exponential
-/// and fused multiply-adds: the same numbers to rounding. (No closures here: see
-/// `simd::exp_neg`.)
+/// is worked out pixel by pixel. The depth, normal and the pixels that pass through are the
+/// a-trous passes' feature planes (loads; the frame's buffers took a de-interleaving of the
+/// normal and a byte at a time of the emitters a tap). The same weights, with
+/// [`crate::simd::exp_neg`]'s exponential and fused multiply-adds: the same numbers to
+/// rounding. (No closures here: see `simd::exp_neg`.)
 struct SpatialVariance<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     next: &'a History,
+    /// The frame's depth, normal and the pixels that pass through, as planes.
+    features: StaticsView<'a>,
     y: usize,
     out: [&'a mut [f32]; 2],
     signals: usize,
@@ -1048,7 +1053,6 @@ impl Groups for SpatialVariance<'_, '_> {
         let (f, next, y) = (self.f, self.next, self.y);
         let (w, h) = (f.width, f.height);
         let n = V::N.min(w - x0);
-        let i0 = y * w + x0;
         if x0 < 3 || x0 + V::N + 3 > w {
             for x in x0..x0 + n {
                 let i = y * w + x;
@@ -1062,14 +1066,22 @@ impl Groups for SpatialVariance<'_, '_> {
             return false;
         }
         let splat = V::splat;
-        let zero = splat(0.0);
-        let [depth] = channels::<V, f32, 1>(f.depth, i0, n);
+        let (zero, one) = (splat(0.0), splat(1.0));
+        // The features' planes (what `live_lanes` and the frame's buffers give, as loads; a
+        // normal where the pixel passes through is 0 there, and such a neighbour is left out).
+        let st = self.features;
+        let depth = load_first::<V>(&st.depth(y)[x0..]);
         let length = load_first::<V>(&next.row_field(y, LENGTH)[x0..]);
-        let is_short = V::and(live_lanes(f, i0, n, depth), splat(4.0).gt(length));
+        let live = one.gt(load_first::<V>(&st.through(y)[x0..]));
+        let is_short = V::and(live, splat(4.0).gt(length));
         if !V::any(is_short) {
             return false;
         }
-        let normal: [V; 3] = channels(f.normal, i0, n);
+        let normal: [V; 3] = [
+            load_first(&st.normal(y, 0)[x0..]),
+            load_first(&st.normal(y, 1)[x0..]),
+            load_first(&st.normal(y, 2)[x0..]),
+        ];
         // The depth test's `-1 / (0.05 z + 1e-6)`.
         let minus_inv = splat(-1.0) / (depth.mul_add(splat(0.05), splat(1e-6)));
         let floor = splat(-30.0);
@@ -1082,11 +1094,16 @@ impl Groups for SpatialVariance<'_, '_> {
                 next.row_field(qy, MOMENTS + 2),
                 next.row_field(qy, MOMENTS + 3),
             ];
+            let (zs, through) = (st.depth(qy), st.through(qy));
+            let ns = [st.normal(qy, 0), st.normal(qy, 1), st.normal(qy, 2)];
             for qx in x0 - 3..=x0 + 3 {
-                let q = qy * w + qx;
-                let [zq] = channels::<V, f32, 1>(f.depth, q, V::N);
-                let nq: [V; 3] = channels(f.normal, q, V::N);
-                let live = live_lanes(f, q, V::N, zq);
+                let zq = load_first::<V>(&zs[qx..]);
+                let nq: [V; 3] = [
+                    load_first(&ns[0][qx..]),
+                    load_first(&ns[1][qx..]),
+                    load_first(&ns[2][qx..]),
+                ];
+                let live = one.gt(load_first::<V>(&through[qx..]));
                 let ez = (zq - depth).abs() * minus_inv;
                 let cos = nq[0].mul_add(normal[0], nq[1].mul_add(normal[1], nq[2] * normal[2]));
                 let wn = normal_weight_lanes(cos);
