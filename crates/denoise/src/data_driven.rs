@@ -119,8 +119,8 @@ use rayon::prelude::*;
 
 use crate::config::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, FilterConfig};
 use crate::simd::{
-    channels, dispatch, exp_neg, finite, iota, luminance_lanes, store_first, ByGroups, F32xN,
-    Groups, Isa, Kernel, LANES,
+    channels, dispatch, exp2_neg_in_range, finite, iota, luminance_lanes, store_first, ByGroups,
+    F32xN, Groups, Isa, Kernel, LANES,
 };
 
 use crate::features::{demodulator, demodulator_lanes, Features, DEPTH, NORMAL, TEXTURE, TEXTURE2};
@@ -132,7 +132,11 @@ use crate::FilterError;
 type Lanes = [f32; LANES];
 
 /// The padded planes, one row of each after another: `VALID` (1 or 0), depth, normal, texture,
-/// texture2, direct and indirect light, and the colour difference's scale.
+/// texture2, direct and indirect light, and the colour difference's scale. Where a pixel is not
+/// valid (the sky, a bad pixel, the padding) its depth is NaN and its other planes 0: the
+/// window's taps read no validity, a NaN depth makes the tap's exponents NaN, floored to a
+/// weight of `2^(LOWEST log2 e)` (1.6e-38) on light of 0: nothing in any sum of weights of
+/// order 1 (the centre's own is 1).
 const VALID: usize = 0;
 const D: usize = 1;
 const N: usize = 2;
@@ -305,9 +309,9 @@ impl DataDriven {
         Ok(())
     }
 
-    /// Writes the padded planes: the features of valid pixels, zeros (and validity 0) for
-    /// the sky and bad pixels. The padding is zeroed when the layout changes and never
-    /// written after.
+    /// Writes the padded planes: the features of valid pixels, zeros (and validity 0, depth
+    /// NaN) for the sky and bad pixels. The padding is laid out so when the layout changes and
+    /// never written after.
     /// `sum`: the colour scales are squared errors ([`Scales::sum`]).
     fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig, sum: bool) {
         let (units, demodulate) = (config.colour_units, config.demodulate);
@@ -315,6 +319,9 @@ impl DataDriven {
         if self.layout != Some((layout, f.height)) {
             self.planes.clear();
             self.planes.resize(rows * layout.row, 0.0);
+            for row in self.planes.chunks_exact_mut(layout.row) {
+                row[D * layout.pitch..(D + 1) * layout.pitch].fill(f32::NAN);
+            }
             self.layout = Some((layout, f.height));
         }
         let albedo = |i: usize| divisor(f.albedo[i], demodulate);
@@ -480,7 +487,7 @@ impl FillRows<'_> {
 }
 
 /// One row of [`FillRows`] in lanes, [`F32xN::N`] pixels at a time. (No closures here: see
-/// `simd::exp_neg`.)
+/// `simd::exp2_neg_in_range`.)
 struct FillRow<'a, 'b> {
     fill: &'a FillRows<'b>,
     y: usize,
@@ -531,7 +538,7 @@ impl Groups for FillRow<'_, '_> {
         }
         let put = (x0, n, valid);
         self.put(put, VALID, one);
-        self.put(put, D, depth);
+        self.put_or(put, D, depth, V::splat(f32::NAN));
         for (plane, v) in [N, T, T2, F0, F1]
             .into_iter()
             .zip([normal, albedo, texture2, direct, indirect])
@@ -574,10 +581,22 @@ impl Groups for FillRow<'_, '_> {
 impl FillRow<'_, '_> {
     /// Stores `v` (0 where not `valid`) into `plane` at the `n` pixels from `x0` on.
     #[inline(always)]
-    fn put<V: F32xN>(&mut self, (x0, n, valid): (usize, usize, V::Mask), plane: usize, v: V) {
+    fn put<V: F32xN>(&mut self, put: (usize, usize, V::Mask), plane: usize, v: V) {
+        self.put_or(put, plane, v, V::splat(0.0));
+    }
+
+    /// Stores `v` (`or` where not `valid`) into `plane` at the `n` pixels from `x0` on.
+    #[inline(always)]
+    fn put_or<V: F32xN>(
+        &mut self,
+        (x0, n, valid): (usize, usize, V::Mask),
+        plane: usize,
+        v: V,
+        or: V,
+    ) {
         let l = self.fill.layout;
         let at = plane * l.pitch + x0 + l.radius;
-        store_first(V::select(valid, v, V::splat(0.0)), n, &mut self.row[at..]);
+        store_first(V::select(valid, v, or), n, &mut self.row[at..]);
     }
 }
 
@@ -844,7 +863,7 @@ impl Row<'_> {
     }
 
     /// The risks of the block's pixels (`sure`): `valid` ones' filtered light and estimates,
-    /// the others passing through. (No closures here: see `simd::exp_neg`.)
+    /// the others passing through. (No closures here: see `simd::exp2_neg_in_range`.)
     #[inline(always)]
     fn risks<V: F32xN>(
         &self,
@@ -971,7 +990,7 @@ impl Row<'_> {
     }
 
     /// The weighted sums over the window of each centre of the block. (No closures here:
-    /// see `simd::exp_neg`.)
+    /// see `simd::exp2_neg_in_range`.)
     #[inline(always)]
     fn sums<V: F32xN, const SUM: bool, const TEXTURE2: bool, const WEIGHTS: bool>(
         &self,
@@ -986,7 +1005,21 @@ impl Row<'_> {
             last + LANES <= self.planes.len(),
             "the window stays in the planes"
         );
-        let c = centre.lanes::<V>();
+        // The tests' coefficients times `-log2(e)`: a tap's exponents are then powers of two,
+        // added up negative, without a negation and a change of base a weight.
+        let mut c = centre.lanes::<V>();
+        let base = V::splat(-std::f32::consts::LOG2_E);
+        for k in [
+            &mut c.c_direct,
+            &mut c.c_indirect,
+            &mut c.c_depth,
+            &mut c.c_normal,
+            &mut c.c_texture,
+            &mut c.c_texture2,
+        ] {
+            *k = *k * base;
+        }
+        let floor = V::splat(crate::exp::LOWEST * std::f32::consts::LOG2_E);
         let zero = V::splat(0.0);
         let mut s = Sums {
             direct_w: zero,
@@ -1023,9 +1056,8 @@ impl Row<'_> {
             } else {
                 (c.c_direct * v[SCALE_D], c.c_indirect * v[SCALE_I])
             };
-            let valid = v[VALID];
             let wd = weight::<V, WEIGHTS>(
-                valid,
+                floor,
                 three(F0),
                 (c.direct, direct_root),
                 root,
@@ -1039,7 +1071,7 @@ impl Row<'_> {
                 features
             };
             let wi = weight::<V, WEIGHTS>(
-                valid,
+                floor,
                 three(F1),
                 (c.indirect, indirect_root),
                 root,
@@ -1084,18 +1116,19 @@ fn colour<V: F32xN, const WEIGHTS: bool>(
     k.mul_add(x.mul_add(x, y.mul_add(y, z * z)), plus)
 }
 
-/// A signal's weight at a neighbour of validity `valid` (1 or 0) in lanes: its [`colour`]
-/// test and the tests in `plus`, `valid exp(-exponent)`.
+/// A signal's weight at a neighbour in lanes: its [`colour`] test and the tests in `plus`,
+/// with coefficients times `-log2(e)`, `2^exponent`, the exponent at least `floor` (`LOWEST
+/// log2(e)`; a NaN exponent, a neighbour that is not valid, is floored too).
 #[inline(always)]
 fn weight<V: F32xN, const WEIGHTS: bool>(
-    valid: V,
+    floor: V,
     a: [V; 3],
     centre: ([V; 3], [V; 3]),
     root: [V; 3],
     k: V,
     plus: V,
 ) -> V {
-    valid * exp_neg(V::splat(-1.0) * colour::<V, WEIGHTS>(a, centre, root, k, plus))
+    exp2_neg_in_range(colour::<V, WEIGHTS>(a, centre, root, k, plus).at_least(floor))
 }
 
 /// `-root light`, channel by channel, in lanes.

@@ -430,20 +430,16 @@ pub fn luminance_lanes<V: F32xN>(c: [V; 3]) -> V {
     V::splat(LUMINANCE[0]) * c[0] + V::splat(LUMINANCE[1]) * c[1] + V::splat(LUMINANCE[2]) * c[2]
 }
 
-/// `e^x` for `x <= 0` in lanes: [`crate::exp::exp_neg`]'s method and polynomial.
-#[inline(always)]
-pub fn exp_neg<V: F32xN>(x: V) -> V {
-    exp_neg_in_range(x.at_least(V::splat(crate::exp::LOWEST)))
-}
-
-/// [`exp_neg`] of lanes the caller has kept within `LOWEST..=0` (not NaN).
+/// `e^x` of lanes the caller has kept within `LOWEST..=0` (not NaN): [`crate::exp::exp_neg`]'s
+/// method and polynomial.
 #[inline(always)]
 pub fn exp_neg_in_range<V: F32xN>(x: V) -> V {
     exp2_neg_in_range(x * V::splat(std::f32::consts::LOG2_E))
 }
 
-/// `2^t` of lanes the caller has kept within `LOWEST log2(e)..=0` (not NaN): [`exp_neg`]'s
-/// power of two and polynomial, for a caller whose exponent is already in base 2.
+/// `2^t` of lanes the caller has kept within `LOWEST log2(e)..=0` (not NaN): `e^x` of
+/// [`crate::exp::exp_neg`]'s power of two and polynomial, for callers whose exponents are in
+/// base 2 (their coefficients times `log2(e)`).
 #[inline(always)]
 pub fn exp2_neg_in_range<V: F32xN>(t: V) -> V {
     use crate::exp::EXP2_POLY;
@@ -1086,6 +1082,8 @@ mod tests {
                 for j in 0..LANES {
                     assert_eq!(out[j], if j < V::N { a[j] * 2.0 } else { 7.0 });
                 }
+                // `e^x`, floored at `LOWEST`.
+                let exp_neg = |x: V| exp_neg_in_range(x.at_least(V::splat(crate::exp::LOWEST)));
                 let e = exp_neg(V::splat(-1.5) * va.abs()).to_array();
                 for j in 0..V::N {
                     let x = -1.5 * a[j].abs();

@@ -685,7 +685,7 @@ fn narrowing(f: &SvgfFrame, weights2: f32, i: usize, converge: bool) -> f32 {
 /// one row; two loads permuted where they lie within `2N` pixels of one row, as most of a
 /// rotating camera's do; else gathers of the lanes that pass the tests), and a tap no lane
 /// takes (a still camera's three others) is skipped. (No closures here: see
-/// `simd::exp_neg`.)
+/// `simd::exp2_neg_in_range`.)
 struct Temporal<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     previous: &'a History,
@@ -917,7 +917,7 @@ impl Groups for Temporal<'_, '_> {
 /// The features' planes of row `y` in lanes, [`F32xN::N`] pixels at a time: depth, |grad z|
 /// ([`depth_gradient`]), whether the pixel passes through ([`passes_through`]), the normal (0
 /// where it does). The same arithmetic, so the same numbers. (No closures here: see
-/// `simd::exp_neg`.)
+/// `simd::exp2_neg_in_range`.)
 struct Features<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     y: usize,
@@ -956,7 +956,7 @@ impl Groups for Features<'_, '_> {
 
 /// The output of row `y` in lanes, [`F32xN::N`] pixels at a time: the filtered light times
 /// the albedo ([`remodulate`]), or this frame's light where the pixel passes through. The same
-/// arithmetic, so the same numbers. (No closures here: see `simd::exp_neg`.)
+/// arithmetic, so the same numbers. (No closures here: see `simd::exp2_neg_in_range`.)
 struct Output<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     y: usize,
@@ -1031,8 +1031,8 @@ fn live_lanes<V: F32xN>(f: &SvgfFrame, i0: usize, n: usize, depth: V) -> V::Mask
 /// is worked out pixel by pixel. The depth, normal and the pixels that pass through are the
 /// a-trous passes' feature planes (loads; the frame's buffers took a de-interleaving of the
 /// normal and a byte at a time of the emitters a tap). The same weights, with
-/// [`crate::simd::exp_neg`]'s exponential and fused multiply-adds: the same numbers to
-/// rounding. (No closures here: see `simd::exp_neg`.)
+/// [`crate::simd::exp_neg_in_range`]'s exponential and fused multiply-adds: the same numbers to
+/// rounding. (No closures here: see `simd::exp2_neg_in_range`.)
 struct SpatialVariance<'a, 'f> {
     f: &'a SvgfFrame<'f>,
     next: &'a History,

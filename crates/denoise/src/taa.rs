@@ -242,7 +242,7 @@ fn expand(c: Vec3) -> Vec3 {
 
 /// [`pixel`] of row `y`'s pixels in lanes, [`F32xN::N`] at a time, into `out` (the row's):
 /// the same arithmetic in the same order, so the same numbers. (No closures here: see
-/// `simd::exp_neg`.)
+/// `simd::exp2_neg_in_range`.)
 struct Blend<'a> {
     history: &'a [f32],
     motion: &'a [Vec2],
@@ -302,7 +302,7 @@ impl Groups for Blend<'_> {
             // SAFETY: the lanes where `inside` are pixels of the image (`qx` in `0..w`, `qy`
             // in `0..h`, whole numbers), whose three channels are in the history (as large as
             // the image's), at indices under 2^24 + 2^25.
-            // (No closures here: see `simd::exp_neg`.)
+            // (No closures here: see `simd::exp2_neg_in_range`.)
             let t: [V; 3] = unsafe {
                 [
                     fetch.read(self.history, 0, qx, qy, 3 * w, inside),

@@ -426,6 +426,56 @@ fn a_constant_image_stays_constant() {
     }
 }
 
+/// Pixels outside the image and the sky's are nobody's neighbours, however loose the tests:
+/// with every sigma huge a neighbour that counted would weigh about 1 and pull its pixel
+/// toward its own light (0 for the padding, the environment's for the sky).
+#[test]
+fn the_border_and_the_sky_are_nobodys_neighbours_however_loose_the_tests() {
+    let (d, i) = (Vec3::new(0.3, 0.5, 0.7), Vec3::new(0.05, 0.1, 0.02));
+    let mut f = Frame::flat(40, 24, d, i);
+    for y in 8..14 {
+        for x in 15..22 {
+            f.depth[y * 40 + x] = f32::INFINITY;
+            f.direct[y * 40 + x] = Vec3::splat(20.0);
+        }
+    }
+    let loose = FilterConfig {
+        sigma_direct: 1e4,
+        sigma_indirect: 1e4,
+        sigma_depth: 1e4,
+        sigma_normal: 1e4,
+        sigma_texture: 1e4,
+        ..data_driven()
+    };
+    for (holes, lanes) in [
+        (false, "widest"),
+        (true, "widest"),
+        (true, "avx2"),
+        (true, "portable"),
+    ] {
+        let out = f.filter_with(
+            &FilterConfig {
+                holes,
+                ..loose.clone()
+            },
+            lanes,
+        );
+        for (k, o) in out.iter().enumerate() {
+            let want = if f.depth[k].is_finite() {
+                d + i
+            } else {
+                f.direct[k] + f.indirect[k]
+            };
+            assert!(
+                (*o - want).abs().max_element() < 1e-5,
+                "({}, {}) {o} with {lanes} lanes",
+                k % 40,
+                k / 40
+            );
+        }
+    }
+}
+
 #[test]
 fn a_feature_edge_is_not_blurred_across() {
     // Left: a wall facing the camera lit at 0.2; right: a wall at a right angle lit at 0.9.
