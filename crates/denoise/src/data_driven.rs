@@ -631,7 +631,7 @@ struct Scales {
     indirect: f32,
     depth: f32,
     /// `sigma_normal` and `sigma_normal_lobe`: the normal test's coefficient depends on the
-    /// pixel ([`Scales::normal_at`]).
+    /// pixel ([`Scales::normal_lanes`]).
     sigma_normal: f32,
     lobe: f32,
     texture: f32,
@@ -668,23 +668,36 @@ impl Scales {
         }
     }
 
-    /// The normal test's coefficient at a pixel of this roughness and metallic factor: its
-    /// sigma is `sigma_normal` blended by the metallic factor (clamped to [0, 1], NaN as 0)
-    /// toward `sigma_normal_lobe` times the GGX alpha (roughness squared, at least 0.01)
-    /// where that is smaller. A pixel that is not metallic gets the configuration's exactly.
-    fn normal_at(&self, roughness: f32, metallic: f32) -> f32 {
-        let m = if metallic.is_nan() {
-            0.0
-        } else {
-            metallic.clamp(0.0, 1.0)
-        };
-        if self.lobe == 0.0 || m == 0.0 {
-            return coefficient(self.sigma_normal);
+    /// The normal test's coefficient at pixels of these roughnesses and metallic factors, in
+    /// lanes: its sigma is `sigma_normal` blended by the metallic factor (clamped to [0, 1],
+    /// NaN as 0) toward `sigma_normal_lobe` times the GGX alpha (roughness squared, at least
+    /// 0.01; NaN as 0.01) where that is smaller. A pixel that is not metallic gets the
+    /// configuration's exactly.
+    #[inline(always)]
+    fn normal_lanes<V: F32xN>(&self, roughness: V, metallic: V) -> V {
+        let (sigma, one) = (V::splat(self.sigma_normal), V::splat(1.0));
+        if self.lobe == 0.0 {
+            return V::splat(coefficient(self.sigma_normal));
         }
-        let alpha = (roughness * roughness).max(0.01);
-        let lobe = (self.lobe * alpha).min(self.sigma_normal);
-        coefficient(self.sigma_normal + m * (lobe - self.sigma_normal))
+        // `at_least` takes NaN to its floor.
+        let m = metallic.at_least(V::splat(0.0));
+        let m = V::select(m.gt(one), one, m);
+        let alpha = (roughness * roughness).at_least(V::splat(0.01));
+        let lobe = V::splat(self.lobe) * alpha;
+        let lobe = V::select(lobe.gt(sigma), sigma, lobe);
+        // `sigma + 0 (lobe - sigma)` is `sigma` exactly where the pixel is not metallic.
+        let sigma = sigma + m * (lobe - sigma);
+        one / (V::splat(2.0) * sigma * sigma)
     }
+}
+
+/// A test's coefficient `k` lowered by the feature's scaled variance `t` at the pixel, in
+/// lanes: `k (1 - clamp01(t))`, a `t` that is not a number trusting the feature not at all.
+#[inline(always)]
+fn lowered<V: F32xN>(k: V, t: V) -> V {
+    let one = V::splat(1.0);
+    let clamped = V::select(t.gt(one), one, t.at_least(V::splat(0.0)));
+    k * (one - V::select(t.ne(t), one, clamped))
 }
 
 /// A test's coefficient `1 / (2 sigma^2)`.
@@ -818,7 +831,7 @@ impl Row<'_> {
                 }
                 continue;
             }
-            let centre = self.centre(x0);
+            let centre = self.centre::<V>(x0);
             let s = self.scales;
             let sums = match (s.sum, s.texture2 > 0.0, s.weights) {
                 (true, false, false) => self.sums::<V, true, false, false>(x0, &centre),
@@ -914,8 +927,9 @@ impl Row<'_> {
     }
 
     /// The block's centre values and coefficients (lanes past the row's end are padding).
+    /// (No closures here but over lanes' values: see `simd::exp2_neg_in_range`.)
     #[inline(always)]
-    fn centre(&self, x0: usize) -> Centre<Lanes> {
+    fn centre<V: F32xN>(&self, x0: usize) -> Centre<Lanes> {
         let s = self.scales;
         let l = &self.layout;
         let base = l.at(x0, self.y);
@@ -938,53 +952,55 @@ impl Row<'_> {
             c.direct[k] = load(F0 + k);
             c.indirect[k] = load(F1 + k);
         }
-        let width = l.width;
-        // The feature variances and materials of the block's pixels (zeros, and a rough
-        // dielectric, past the row's end).
-        let (f, row) = (self.features, self.y * width..(self.y + 1) * width);
-        let (variance, roughness, metallic) = (
-            &f.variance[row.clone()],
-            &f.roughness[row.clone()],
-            &f.metallic[row],
-        );
-        let variances: [[f32; 5]; LANES] =
-            std::array::from_fn(|j| variance.get(x0 + j).copied().unwrap_or([0.0; 5]));
-        let material = |j: usize| {
-            let at = |v: &[f32], default| v.get(x0 + j).copied().unwrap_or(default);
-            (at(roughness, 1.0), at(metallic, 0.0))
+        // The feature variances and materials of the block's pixels (zeros past the row's
+        // end, whose results are not used), in lanes.
+        let (f, width) = (self.features, l.width);
+        let (i0, n) = (self.y * width + x0, V::N.min(width - x0));
+        let variance: [V; 5] = channels(f.variance, i0, n);
+        let [roughness] = channels::<V, _, 1>(f.roughness, i0, n);
+        let [metallic] = channels::<V, _, 1>(f.metallic, i0, n);
+        let (zero, one) = (V::splat(0.0), V::splat(1.0));
+        let depth = lanes::<V>(&c.depth);
+        let depth_scale = if s.relative_depth {
+            one / depth.at_least(V::splat(1e-6))
+        } else {
+            one
         };
-        for (j, variance) in variances.into_iter().enumerate() {
-            let depth_scale = if s.relative_depth {
-                1.0 / c.depth[j].max(1e-6)
-            } else {
-                1.0
-            };
-            // A variance that is not a number trusts the feature not at all.
-            let lowered = |k: f32, i: usize, v: f32| {
-                let t = v * s.variance[i];
-                k * (1.0 - if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) })
-            };
-            // The depth scale folded into the coefficient: c (dD / d)^2 = (c / d^2) dD^2.
-            let depth_variance = variance[DEPTH] * depth_scale * depth_scale;
-            c.c_depth[j] = lowered(s.depth, DEPTH, depth_variance) * depth_scale * depth_scale;
-            let (r, m) = material(j);
-            c.c_normal[j] = lowered(s.normal_at(r, m), NORMAL, variance[NORMAL]);
-            c.c_texture[j] = lowered(s.texture, TEXTURE, variance[TEXTURE]);
-            c.c_texture2[j] = lowered(s.texture2, TEXTURE2, variance[TEXTURE2]);
-            // The centre's half of the colour scales (the neighbour's is its plane); with
-            // squared errors the window divides by their sum, and a centre that is not valid
-            // (its planes 0: the sky, a bad pixel, past the row's end; its sums unused) gets
-            // 1, so that no lane divides 0 by 0.
+        // The depth scale folded into the coefficient: c (dD / d)^2 = (c / d^2) dD^2.
+        let depth_variance = variance[DEPTH] * depth_scale * depth_scale;
+        let c_depth = lowered(
+            V::splat(s.depth),
+            depth_variance * V::splat(s.variance[DEPTH]),
+        );
+        let c_depth = c_depth * depth_scale * depth_scale;
+        let normal = s.normal_lanes(roughness, metallic);
+        let c_normal = lowered(normal, variance[NORMAL] * V::splat(s.variance[NORMAL]));
+        let c_texture = lowered(
+            V::splat(s.texture),
+            variance[TEXTURE] * V::splat(s.variance[TEXTURE]),
+        );
+        let c_texture2 = lowered(
+            V::splat(s.texture2),
+            variance[TEXTURE2] * V::splat(s.variance[TEXTURE2]),
+        );
+        (c.c_depth, c.c_normal) = (c_depth.to_array(), c_normal.to_array());
+        (c.c_texture, c.c_texture2) = (c_texture.to_array(), c_texture2.to_array());
+        // The centre's half of the colour scales (the neighbour's is its plane); with squared
+        // errors the window divides by their sum, and a centre that is not valid (its planes
+        // 0: the sky, a bad pixel, past the row's end; its sums unused) gets 1, so that no
+        // lane divides 0 by 0.
+        for (scale, k, own) in [
+            (&mut c.scale_direct, s.direct, &mut c.c_direct),
+            (&mut c.scale_indirect, s.indirect, &mut c.c_indirect),
+        ] {
+            let mut e = lanes::<V>(scale);
             if s.sum {
-                for scale in [&mut c.scale_direct[j], &mut c.scale_indirect[j]] {
-                    if *scale == 0.0 {
-                        *scale = 1.0;
-                    }
-                }
+                e = V::select(e.ne(zero), e, one);
+                *own = V::splat(k).to_array();
+            } else {
+                *own = (V::splat(k) * e).to_array();
             }
-            let own = |k: f32, scale: f32| if s.sum { k } else { k * scale };
-            c.c_direct[j] = own(s.direct, c.scale_direct[j]);
-            c.c_indirect[j] = own(s.indirect, c.scale_indirect[j]);
+            *scale = e.to_array();
         }
         c
     }
