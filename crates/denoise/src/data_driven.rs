@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! errors   light, its variances            -> standard errors of the means (variance units)
-//! planes   features (F0..F5, variances),  -> padded feature planes (validity, depth, normal,
+//! planes   features (F0..F5, variances),  -> padded feature planes (depth, normal,
 //!          standard errors                   texture, texture2, direct, indirect, colour
 //!                                            scales)
 //! filter   planes, centre coefficients    -> image = filtered direct + filtered indirect
@@ -131,25 +131,24 @@ use crate::FilterError;
 /// Centre pixels filtered together ([`crate::simd`]).
 type Lanes = [f32; LANES];
 
-/// The padded planes, one row of each after another: `VALID` (1 or 0), depth, normal, texture,
-/// texture2, direct and indirect light, and the colour difference's scale. Where a pixel is not
-/// valid (the sky, a bad pixel, the padding) its depth is NaN and its other planes 0: the
-/// window's taps read no validity, a NaN depth makes the tap's exponents NaN, floored to a
+/// The padded planes, one row of each after another: depth, normal, texture, texture2 (written
+/// only for the texture2 test), direct and indirect light, and the colour difference's scale.
+/// Where a pixel is not valid (the sky, a bad pixel, the padding) its depth is NaN and its other
+/// planes 0: the depth is the validity. A NaN depth makes a tap's exponents NaN, floored to a
 /// weight of `2^(LOWEST log2 e)` (1.6e-38) on light of 0: nothing in any sum of weights of
 /// order 1 (the centre's own is 1).
-const VALID: usize = 0;
-const D: usize = 1;
-const N: usize = 2;
-const T: usize = 5;
-const T2: usize = 8;
-const F0: usize = 11;
-const F1: usize = 14;
+const D: usize = 0;
+const N: usize = 1;
+const T: usize = 4;
+const T2: usize = 7;
+const F0: usize = 10;
+const F1: usize = 13;
 /// The colour differences' scales of the direct and indirect light at the pixel (each a test
 /// multiplies the centre's and the neighbour's): `1 / (1 + luminance)` of the pixel's light
 /// (relative units), `1 / standard error` of its mean (variance units), or 1.
-const SCALE_D: usize = 17;
-const SCALE_I: usize = 18;
-const PLANES: usize = 19;
+const SCALE_D: usize = 16;
+const SCALE_I: usize = 17;
+const PLANES: usize = 18;
 
 /// The data-driven filter with its buffers (kept across frames).
 #[derive(Default)]
@@ -309,8 +308,8 @@ impl DataDriven {
         Ok(())
     }
 
-    /// Writes the padded planes: the features of valid pixels, zeros (and validity 0, depth
-    /// NaN) for the sky and bad pixels. The padding is laid out so when the layout changes and
+    /// Writes the padded planes: the features of valid pixels, zeros (and depth NaN) for the
+    /// sky and bad pixels. The padding is laid out so when the layout changes and
     /// never written after.
     /// `sum`: the colour scales are squared errors ([`Scales::sum`]).
     fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig, sum: bool) {
@@ -355,6 +354,7 @@ impl DataDriven {
             demodulate,
             all_errors: blur,
             sum,
+            texture2: config.texture2_test,
             isa: self.isa,
         };
         let r = layout.radius;
@@ -442,7 +442,7 @@ impl DataDriven {
 }
 
 /// One row of the padded planes from the features ([`DataDriven::fill_planes`]): the
-/// features of valid pixels, zeros (and validity 0) for the sky and bad pixels, in lanes
+/// features of valid pixels, zeros (and depth NaN) for the sky and bad pixels, in lanes
 /// ([`FillRow`]; a per-pixel loop over the row's slices, left to the compiler to vectorise, was
 /// left scalar).
 struct FillRows<'a> {
@@ -456,6 +456,8 @@ struct FillRows<'a> {
     all_errors: bool,
     /// The colour scales are squared errors ([`Scales::sum`]), not their inverses.
     sum: bool,
+    /// The texture2 planes are read (the texture2 test).
+    texture2: bool,
     isa: Isa,
 }
 
@@ -537,14 +539,18 @@ impl Groups for FillRow<'_, '_> {
             indirect[k] = indirect[k] * inv;
         }
         let put = (x0, n, valid);
-        self.put(put, VALID, one);
         self.put_or(put, D, depth, V::splat(f32::NAN));
-        for (plane, v) in [N, T, T2, F0, F1]
+        for (plane, v) in [N, T, F0, F1]
             .into_iter()
-            .zip([normal, albedo, texture2, direct, indirect])
+            .zip([normal, albedo, direct, indirect])
         {
             for (c, v) in v.into_iter().enumerate() {
                 self.put(put, plane + c, v);
+            }
+        }
+        if s.texture2 {
+            for (c, v) in texture2.into_iter().enumerate() {
+                self.put(put, T2 + c, v);
             }
         }
         let sum = [
@@ -814,13 +820,15 @@ impl Row<'_> {
             let n = V::N.min(width - x0);
             let (f, i0) = (self.features, self.y * width + x0);
             let (direct, indirect) = (&f.direct[i0..i0 + n], &f.indirect[i0..i0 + n]);
-            // The block's validity (lanes past the row's end are its padding: not valid).
-            let at = self.layout.at(x0, self.y) + VALID * self.layout.pitch;
+            // The block's depths, its validity: NaN where not valid (lanes past the row's end
+            // are its padding: not valid).
+            let at = self.layout.at(x0, self.y) + D * self.layout.pitch;
             let block: &Lanes = self.planes[at..at + LANES]
                 .try_into()
                 .expect("a block of lanes");
-            let valid = &block[..n];
-            if !V::any(lanes::<V>(block).ne(V::splat(0.0))) {
+            let depth = &block[..n];
+            let d = lanes::<V>(block);
+            if V::all(d.ne(d)) {
                 // Sky or bad pixels only (much of an outdoor frame): as they are, the window
                 // not run.
                 for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
@@ -844,9 +852,9 @@ impl Row<'_> {
                 (false, true, true) => self.sums::<V, false, true, true>(x0, &centre),
             };
             if let Some(risks) = risks.as_deref_mut() {
-                self.risks::<V>(&sums, &centre, valid, &mut risks[x0..x0 + n]);
+                self.risks::<V>(&sums, &centre, depth, &mut risks[x0..x0 + n]);
                 for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
-                    if valid[j] == 0.0 {
+                    if depth[j].is_nan() {
                         *o = direct[j] + indirect[j];
                     }
                 }
@@ -860,7 +868,7 @@ impl Row<'_> {
             }
             let albedo = &f.albedo[i0..i0 + n];
             for (j, o) in out[x0..x0 + n].iter_mut().enumerate() {
-                *o = if valid[j] == 0.0 {
+                *o = if depth[j].is_nan() {
                     // Sky or a bad pixel: as it is.
                     direct[j] + indirect[j]
                 } else {
@@ -875,14 +883,15 @@ impl Row<'_> {
         }
     }
 
-    /// The risks of the block's pixels (`sure`): `valid` ones' filtered light and estimates,
-    /// the others passing through. (No closures here: see `simd::exp2_neg_in_range`.)
+    /// The risks of the block's pixels (`sure`): the valid ones' (a `depth` that is a number)
+    /// filtered light and estimates, the others passing through. (No closures here: see
+    /// `simd::exp2_neg_in_range`.)
     #[inline(always)]
     fn risks<V: F32xN>(
         &self,
         sums: &Sums<V>,
         centre: &Centre<Lanes>,
-        valid: &[f32],
+        depth: &[f32],
         risks: &mut [Risk],
     ) {
         let mut direct = [[0.0; LANES]; 3];
@@ -894,7 +903,7 @@ impl Row<'_> {
         let (wd, wi) = (sums.direct_w.to_array(), sums.indirect_w.to_array());
         let c = centre;
         for (j, risk) in risks.iter_mut().enumerate() {
-            if valid[j] == 0.0 {
+            if depth[j].is_nan() {
                 *risk = Risk::none();
                 continue;
             }
