@@ -377,10 +377,12 @@ impl DataDriven {
         valid: &(impl Fn(usize) -> bool + Sync),
         weights: bool,
     ) {
-        let unknown = f
-            .light_variance
-            .par_iter()
-            .any(|v| !(known(v[0]) && known(v[1])));
+        // By blocks, without branches within one (the compiler vectorises them).
+        let unknown = f.light_variance.par_chunks(4096).any(|block| {
+            block
+                .iter()
+                .fold(false, |unknown, v| unknown | !(known(v[0]) & known(v[1])))
+        });
         if !unknown {
             return;
         }
@@ -628,7 +630,7 @@ fn valid_pixel(depth: f32, vectors: [Vec3; 5]) -> bool {
 /// A variance the caller gives (finite and not negative; NaN: not known).
 #[inline]
 fn known(variance: f32) -> bool {
-    variance.is_finite() && variance >= 0.0
+    variance.is_finite() & (variance >= 0.0)
 }
 
 /// `1 / (2 sigma^2)` of each test.
@@ -725,9 +727,8 @@ struct Row<'a> {
     centre: f32,
 }
 
-/// A block's centre pixels' values and coefficients, in lanes: `[f32; 16]` arrays while they
-/// are worked out pixel by pixel, then values of lanes `V` for the window ([`Centre::lanes`]).
-#[derive(Default)]
+/// A block's centre pixels' values and coefficients, in lanes.
+#[derive(Clone, Copy)]
 struct Centre<T> {
     depth: T,
     normal: [T; 3],
@@ -745,35 +746,27 @@ struct Centre<T> {
     c_texture2: T,
 }
 
-impl Centre<Lanes> {
-    #[inline(always)]
-    fn lanes<V: F32xN>(&self) -> Centre<V> {
-        let one = lanes::<V>;
-        let three = |a: &[Lanes; 3]| [one(&a[0]), one(&a[1]), one(&a[2])];
-        Centre {
-            depth: one(&self.depth),
-            normal: three(&self.normal),
-            texture: three(&self.texture),
-            texture2: three(&self.texture2),
-            direct: three(&self.direct),
-            indirect: three(&self.indirect),
-            scale_direct: one(&self.scale_direct),
-            scale_indirect: one(&self.scale_indirect),
-            c_direct: one(&self.c_direct),
-            c_indirect: one(&self.c_indirect),
-            c_depth: one(&self.c_depth),
-            c_normal: one(&self.c_normal),
-            c_texture: one(&self.c_texture),
-            c_texture2: one(&self.c_texture2),
-        }
-    }
-}
-
 /// An array's lanes.
 #[inline(always)]
 fn lanes<V: F32xN>(a: &Lanes) -> V {
     // SAFETY: the array has `LANES` values.
     unsafe { V::load(a.as_ptr()) }
+}
+
+/// The lanes of `planes` from `at` on.
+#[inline(always)]
+fn plane_lanes<V: F32xN>(planes: &[f32], at: usize) -> V {
+    lanes(planes[at..at + LANES].try_into().expect("a block of lanes"))
+}
+
+/// The lanes of three planes `pitch` apart from `at` on.
+#[inline(always)]
+fn three_planes<V: F32xN>(planes: &[f32], at: usize, pitch: usize) -> [V; 3] {
+    [
+        plane_lanes(planes, at),
+        plane_lanes(planes, at + pitch),
+        plane_lanes(planes, at + 2 * pitch),
+    ]
 }
 
 /// The weighted sums of one block of centres.
@@ -890,7 +883,7 @@ impl Row<'_> {
     fn risks<V: F32xN>(
         &self,
         sums: &Sums<V>,
-        centre: &Centre<Lanes>,
+        centre: &Centre<V>,
         depth: &[f32],
         risks: &mut [Risk],
     ) {
@@ -901,7 +894,16 @@ impl Row<'_> {
             indirect[k] = (sums.indirect[k] / sums.indirect_w).to_array();
         }
         let (wd, wi) = (sums.direct_w.to_array(), sums.indirect_w.to_array());
-        let c = centre;
+        // The centres' values the risks need, as arrays.
+        let texture = centre.texture.map(V::to_array);
+        let (direct_c, indirect_c) = (
+            centre.direct.map(V::to_array),
+            centre.indirect.map(V::to_array),
+        );
+        let (scale_direct, scale_indirect) = (
+            centre.scale_direct.to_array(),
+            centre.scale_indirect.to_array(),
+        );
         for (j, risk) in risks.iter_mut().enumerate() {
             if depth[j].is_nan() {
                 *risk = Risk::none();
@@ -909,7 +911,7 @@ impl Row<'_> {
             }
             // The squared standard errors (or their inverses, `product`) of the colour
             // scales.
-            let (sd, si) = (c.scale_direct[j], c.scale_indirect[j]);
+            let (sd, si) = (scale_direct[j], scale_indirect[j]);
             let variance = if self.scales.sum {
                 [sd, si]
             } else {
@@ -921,14 +923,14 @@ impl Row<'_> {
                     Vec3::new(indirect[0][j], indirect[1][j], indirect[2][j]),
                 ],
                 [
-                    Vec3::new(c.direct[0][j], c.direct[1][j], c.direct[2][j]),
-                    Vec3::new(c.indirect[0][j], c.indirect[1][j], c.indirect[2][j]),
+                    Vec3::new(direct_c[0][j], direct_c[1][j], direct_c[2][j]),
+                    Vec3::new(indirect_c[0][j], indirect_c[1][j], indirect_c[2][j]),
                 ],
                 [wd[j], wi[j]],
                 variance,
                 self.centre,
                 self.scales.weights.then(|| {
-                    let t = Vec3::new(c.texture[0][j], c.texture[1][j], c.texture[2][j]);
+                    let t = Vec3::new(texture[0][j], texture[1][j], texture[2][j]);
                     channel_weights(divisor(t, self.scales.demodulate))
                 }),
             );
@@ -936,31 +938,36 @@ impl Row<'_> {
     }
 
     /// The block's centre values and coefficients (lanes past the row's end are padding).
-    /// (No closures here but over lanes' values: see `simd::exp2_neg_in_range`.)
+    /// (No closures here: see `simd::exp2_neg_in_range`.)
     #[inline(always)]
-    fn centre<V: F32xN>(&self, x0: usize) -> Centre<Lanes> {
+    fn centre<V: F32xN>(&self, x0: usize) -> Centre<V> {
         let s = self.scales;
         let l = &self.layout;
         let base = l.at(x0, self.y);
-        let load = |plane: usize| -> Lanes {
-            let at = base + plane * l.pitch;
-            self.planes[at..at + LANES]
-                .try_into()
-                .expect("a block of lanes")
-        };
+        let at = |plane: usize| base + plane * l.pitch;
+        let (planes, pitch) = (self.planes, l.pitch);
+        let zero = V::splat(0.0);
         let mut c = Centre {
-            depth: load(D),
-            scale_direct: load(SCALE_D),
-            scale_indirect: load(SCALE_I),
-            ..Default::default()
+            depth: plane_lanes(planes, at(D)),
+            normal: three_planes(planes, at(N), pitch),
+            texture: three_planes(planes, at(T), pitch),
+            // Not written without the texture2 test.
+            texture2: if s.texture2 > 0.0 {
+                three_planes(planes, at(T2), pitch)
+            } else {
+                [zero; 3]
+            },
+            direct: three_planes(planes, at(F0), pitch),
+            indirect: three_planes(planes, at(F1), pitch),
+            scale_direct: plane_lanes(planes, at(SCALE_D)),
+            scale_indirect: plane_lanes(planes, at(SCALE_I)),
+            c_direct: zero,
+            c_indirect: zero,
+            c_depth: zero,
+            c_normal: zero,
+            c_texture: zero,
+            c_texture2: zero,
         };
-        for k in 0..3 {
-            c.normal[k] = load(N + k);
-            c.texture[k] = load(T + k);
-            c.texture2[k] = load(T2 + k);
-            c.direct[k] = load(F0 + k);
-            c.indirect[k] = load(F1 + k);
-        }
         // The feature variances and materials of the block's pixels (zeros past the row's
         // end, whose results are not used), in lanes.
         let (f, width) = (self.features, l.width);
@@ -968,10 +975,9 @@ impl Row<'_> {
         let variance: [V; 5] = channels(f.variance, i0, n);
         let [roughness] = channels::<V, _, 1>(f.roughness, i0, n);
         let [metallic] = channels::<V, _, 1>(f.metallic, i0, n);
-        let (zero, one) = (V::splat(0.0), V::splat(1.0));
-        let depth = lanes::<V>(&c.depth);
+        let one = V::splat(1.0);
         let depth_scale = if s.relative_depth {
-            one / depth.at_least(V::splat(1e-6))
+            one / c.depth.at_least(V::splat(1e-6))
         } else {
             one
         };
@@ -992,8 +998,8 @@ impl Row<'_> {
             V::splat(s.texture2),
             variance[TEXTURE2] * V::splat(s.variance[TEXTURE2]),
         );
-        (c.c_depth, c.c_normal) = (c_depth.to_array(), c_normal.to_array());
-        (c.c_texture, c.c_texture2) = (c_texture.to_array(), c_texture2.to_array());
+        (c.c_depth, c.c_normal) = (c_depth, c_normal);
+        (c.c_texture, c.c_texture2) = (c_texture, c_texture2);
         // The centre's half of the colour scales (the neighbour's is its plane); with squared
         // errors the window divides by their sum, and a centre that is not valid (its planes
         // 0: the sky, a bad pixel, past the row's end; its sums unused) gets 1, so that no
@@ -1002,14 +1008,12 @@ impl Row<'_> {
             (&mut c.scale_direct, s.direct, &mut c.c_direct),
             (&mut c.scale_indirect, s.indirect, &mut c.c_indirect),
         ] {
-            let mut e = lanes::<V>(scale);
             if s.sum {
-                e = V::select(e.ne(zero), e, one);
-                *own = V::splat(k).to_array();
+                *scale = V::select(scale.ne(zero), *scale, one);
+                *own = V::splat(k);
             } else {
-                *own = (V::splat(k) * e).to_array();
+                *own = V::splat(k) * *scale;
             }
-            *scale = e.to_array();
         }
         c
     }
@@ -1020,7 +1024,7 @@ impl Row<'_> {
     fn sums<V: F32xN, const SUM: bool, const TEXTURE2: bool, const WEIGHTS: bool>(
         &self,
         x0: usize,
-        centre: &Centre<Lanes>,
+        centre: &Centre<V>,
     ) -> Sums<V> {
         let l = &self.layout;
         // The window's top-left corner of the first centre.
@@ -1032,7 +1036,7 @@ impl Row<'_> {
         );
         // The tests' coefficients times `-log2(e)`: a tap's exponents are then powers of two,
         // added up negative, without a negation and a change of base a weight.
-        let mut c = centre.lanes::<V>();
+        let mut c = *centre;
         let base = V::splat(-std::f32::consts::LOG2_E);
         for k in [
             &mut c.c_direct,
