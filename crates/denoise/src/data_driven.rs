@@ -110,8 +110,13 @@
 //!   tap is then 16 neighbours next to each other in memory, one value of [`crate::simd`]'s
 //!   lanes (AVX-512, or 8 pixels at a time with AVX2, with fused multiply-adds where the
 //!   processor has them, chosen at run time; without, plain arrays, and the results differ by
-//!   float rounding). Rows run in
-//!   parallel; every pixel's result depends on the inputs alone, not on the thread count.
+//!   float rounding). Rows run in parallel; every pixel's result depends on the inputs
+//!   alone, not on the thread count.
+//! - **A tap's weights** are powers of two: the tests' coefficients are multiplied by
+//!   `-log2(e)` once per block, so each exponent comes out negative and in base 2. A
+//!   neighbour that is not valid has a NaN depth in the planes (there is no validity plane):
+//!   its exponents are NaN, floored to a weight of 1.6e-38 on light of 0, nothing beside a
+//!   weight that counts (the centre's own is 1 where the window holds it).
 
 use glam::Vec3;
 use pathlight_core::color::luminance;
@@ -135,8 +140,8 @@ type Lanes = [f32; LANES];
 /// only for the texture2 test), direct and indirect light, and the colour difference's scale.
 /// Where a pixel is not valid (the sky, a bad pixel, the padding) its depth is NaN and its other
 /// planes 0: the depth is the validity. A NaN depth makes a tap's exponents NaN, floored to a
-/// weight of `2^(LOWEST log2 e)` (1.6e-38) on light of 0: nothing in any sum of weights of
-/// order 1 (the centre's own is 1).
+/// weight of `2^(LOWEST log2 e)` (1.6e-38) on light of 0: nothing beside a weight that counts
+/// (the centre's own is 1 where the window holds it).
 const D: usize = 0;
 const N: usize = 1;
 const T: usize = 4;
@@ -309,8 +314,8 @@ impl DataDriven {
     }
 
     /// Writes the padded planes: the features of valid pixels, zeros (and depth NaN) for the
-    /// sky and bad pixels. The padding is laid out so when the layout changes and
-    /// never written after.
+    /// sky and bad pixels. The padding (zeros, the depth NaN) is laid out when the layout
+    /// changes and never written after.
     /// `sum`: the colour scales are squared errors ([`Scales::sum`]).
     fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig, sum: bool) {
         let (units, demodulate) = (config.colour_units, config.demodulate);
