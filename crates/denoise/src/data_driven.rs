@@ -252,19 +252,23 @@ impl DataDriven {
         let scales = Scales::new(config);
         self.fill_planes(features, layout, config, scales.sum);
         let step = if config.holes { 2 } else { 1 };
-        let offsets: Vec<usize> = (0..=2 * radius)
+        let mut offsets: Vec<usize> = (0..=2 * radius)
             .step_by(step)
             .flat_map(|dy| (0..=2 * radius).step_by(step).map(move |dx| (dy, dx)))
             .map(|(dy, dx)| dy * layout.row + dx)
             .collect();
+        // The holes of a window of odd radius (7x7, 15x15) skip its centre: it is a tap all
+        // the same, or a pixel unlike all its taps (a wire one pixel wide, a pixel alone
+        // against the sky) would take their light, or none. In order: the taps' bounds are
+        // checked at the last.
+        if !radius.is_multiple_of(step) {
+            let at = radius * layout.row + radius;
+            let k = offsets.partition_point(|&o| o < at);
+            offsets.insert(k, at);
+        }
         let planes = &self.planes;
         // With `sure` the rows leave each valid pixel's light and risks, and the blend writes
-        // it; the centre weighs 1 where it is a tap of its window.
-        let centre = if radius.is_multiple_of(step) {
-            1.0
-        } else {
-            0.0
-        };
+        // it.
         let sure = config.sure;
         self.risks
             .resize(if sure { features.len() } else { 0 }, Risk::default());
@@ -280,7 +284,6 @@ impl DataDriven {
                 features,
                 y,
                 isa: self.isa,
-                centre,
             };
             job.run(row, risks);
         };
@@ -728,8 +731,6 @@ struct Row<'a> {
     y: usize,
     /// The widest lanes to use.
     isa: Isa,
-    /// The centre's own weight in its window: 1, or 0 where the holes skip it (`sure`).
-    centre: f32,
 }
 
 /// A block's centre pixels' values and coefficients, in lanes.
@@ -933,7 +934,8 @@ impl Row<'_> {
                 ],
                 [wd[j], wi[j]],
                 variance,
-                self.centre,
+                // The centre's own weight: it is always a tap.
+                1.0,
                 self.scales.weights.then(|| {
                     let t = Vec3::new(texture[0][j], texture[1][j], texture[2][j]);
                     channel_weights(divisor(t, self.scales.demodulate))

@@ -14,12 +14,13 @@
 //! SURE(y) = s^2
 //! ```
 //!
-//! are unbiased estimates of the two squared errors (`w_p`, the centre's own weight, is 1,
-//! or 0 where the window's holes skip it). A single pixel's estimates are noise, so each is
-//! averaged over the valid pixels of the pixel's `(2r + 1)^2` neighbourhood (as Li, Wu and
-//! Chuang do with theirs, "SURE-based Optimization for Adaptive Sampling and Reconstruction",
-//! SIGGRAPH Asia 2012, who choose among filter scales by them), and the pixel's light is
-//! `f + b (y - f)` with `b = E_f / (E_f + E_y)`, the two estimates' inverse-error weights.
+//! are unbiased estimates of the two squared errors (`w_p` is the centre's own weight: 1 in
+//! the data-driven filter, whose window always holds it). A single pixel's estimates are
+//! noise, so each is averaged over the valid pixels of the pixel's `(2r + 1)^2` neighbourhood
+//! (as Li, Wu and Chuang do with theirs, "SURE-based Optimization for Adaptive Sampling and
+//! Reconstruction", SIGGRAPH Asia 2012, who choose among filter scales by them), and the
+//! pixel's light is `f + b (y - f)` with `b = E_f / (E_f + E_y)`, the two estimates'
+//! inverse-error weights.
 //! `E_f` is the neighbourhood's mean of SURE(f) less its standard error there (at least 0):
 //! at a few samples the estimates' own noise would otherwise hand back a share of the
 //! pixel's noise where the filter is right (measured: the refractive box's CIELUV MSE at 8 spp

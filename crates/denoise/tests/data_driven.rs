@@ -275,8 +275,17 @@ fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
             };
             let (mut wd_sum, mut wi_sum) = (0.0, 0.0);
             let (mut d_sum, mut i_sum) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
-            for dy in (-r..=r).step_by(step) {
-                for dx in (-r..=r).step_by(step) {
+            // The window's taps: every `step`-th pixel from its corner, and its centre (which
+            // the holes of an odd radius skip).
+            let mut taps: Vec<(i64, i64)> = (-r..=r)
+                .step_by(step)
+                .flat_map(|dy| (-r..=r).step_by(step).map(move |dx| (dx, dy)))
+                .collect();
+            if !taps.contains(&(0, 0)) {
+                taps.push((0, 0));
+            }
+            {
+                for (dx, dy) in taps {
                     let (qx, qy) = (x + dx, y + dy);
                     if qx < 0 || qy < 0 || qx >= f.width as i64 || qy >= f.height as i64 {
                         continue;
@@ -335,6 +344,7 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
             "avx2",
         ),
         (9, true, false, ColourUnits::Linear, sum, true, "portable"),
+        (7, true, true, ColourUnits::Variance, sum, false, "widest"),
         (21, false, true, ColourUnits::Relative, sum, true, "widest"),
         (21, true, false, ColourUnits::Variance, sum, false, "avx2"),
         (
@@ -504,6 +514,34 @@ fn a_feature_edge_is_not_blurred_across() {
     flat.normal.fill(Vec3::Z);
     let blurred = flat.filter(&data_driven());
     assert!(blurred[10 * 40 + 19].x > 0.25, "{}", blurred[10 * 40 + 19]);
+}
+
+/// A wire one pixel wide keeps its light under every window, the holes of an odd radius too
+/// (7x7 and 15x15: they skip the window's centre, which counts all the same).
+#[test]
+fn a_wire_one_pixel_wide_keeps_its_light() {
+    let mut f = Frame::flat(41, 21, Vec3::splat(0.2), Vec3::ZERO);
+    for y in 0..21 {
+        f.normal[y * 41 + 20] = Vec3::X;
+        f.direct[y * 41 + 20] = Vec3::splat(0.9);
+    }
+    for (kernel, holes) in [(7, true), (15, true), (21, true), (7, false)] {
+        let out = f.filter(&FilterConfig {
+            kernel,
+            holes,
+            ..data_driven()
+        });
+        for y in 0..21 {
+            for x in 0..41 {
+                let want = if x == 20 { 0.9 } else { 0.2 };
+                let got = out[y * 41 + x];
+                assert!(
+                    (got - Vec3::splat(want)).abs().max_element() < 1e-4,
+                    "kernel {kernel} holes {holes} ({x},{y}) {got}"
+                );
+            }
+        }
+    }
 }
 
 #[test]
