@@ -45,6 +45,9 @@
 //!   factor (measured on DamagedHelmet, whose light is mostly its metal's reflections: CIELUV
 //!   MSE at 8 spp 1.04x the unfiltered image's without, 0.84x with; BENCHMARKS.md, "Seed
 //!   001"). A dielectric's light is mostly its diffuse part and keeps the thesis's test.
+//! - **Holes** (`holes`): every other pixel of the window from its corner, and its centre,
+//!   which a window of odd radius (7x7, 15x15) would skip: a pixel unlike all its taps (a
+//!   wire one pixel wide) would take their light.
 //! - The direction test (Eq. 6.19) has no neighbour term: it is the same factor for every q
 //!   and cancels in the normalisation, so it is not computed.
 //! - Depth and colour differences are measured as [`crate::config`] says (the thesis's units
