@@ -601,7 +601,8 @@ impl Pass<'_> {
 
     /// The [`LANES`] pixels from (x0, y) on filtered by a kernel of radius `R` (1: 3x3, 2: 5x5)
     /// over `S` signals into `row`: the weighted means, the pixels that pass through kept as
-    /// they are, and the luminances of the result. (No closures here: see `simd::exp2_neg_in_range`.)
+    /// they are, and the luminances of the result. (No closures here: see
+    /// `simd::exp2_neg_in_range`.)
     #[inline(always)]
     fn group<V: F32xN, const R: i64, const S: usize>(&self, x0: i64, y: i64, row: &mut [f32]) {
         let g = self.moving;

@@ -437,9 +437,9 @@ pub fn exp_neg_in_range<V: F32xN>(x: V) -> V {
     exp2_neg_in_range(x * V::splat(std::f32::consts::LOG2_E))
 }
 
-/// `2^t` of lanes the caller has kept within `LOWEST log2(e)..=0` (not NaN): `e^x` of
-/// [`crate::exp::exp_neg`]'s power of two and polynomial, for callers whose exponents are in
-/// base 2 (their coefficients times `log2(e)`).
+/// `2^t` of lanes the caller has kept within `LOWEST log2(e)..=0` (not NaN), by the power of
+/// two and polynomial of [`crate::exp::exp_neg`]: for callers whose exponents are in base 2
+/// (their coefficients times `log2(e)`).
 #[inline(always)]
 pub fn exp2_neg_in_range<V: F32xN>(t: V) -> V {
     use crate::exp::EXP2_POLY;
