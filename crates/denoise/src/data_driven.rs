@@ -736,8 +736,9 @@ struct Row<'a> {
     isa: Isa,
 }
 
-/// A block's centre pixels' values and coefficients, in lanes.
-#[derive(Clone, Copy)]
+/// A block's centre pixels' values and the tests' coefficients, in lanes. The coefficients
+/// are times `-log2(e)`: a tap's exponents are then powers of two, added up negative, without
+/// a negation and a change of base a weight.
 struct Centre<T> {
     depth: T,
     normal: [T; 3],
@@ -1025,6 +1026,17 @@ impl Row<'_> {
                 *own = V::splat(k) * *scale;
             }
         }
+        let base = V::splat(-std::f32::consts::LOG2_E);
+        for k in [
+            &mut c.c_direct,
+            &mut c.c_indirect,
+            &mut c.c_depth,
+            &mut c.c_normal,
+            &mut c.c_texture,
+            &mut c.c_texture2,
+        ] {
+            *k = *k * base;
+        }
         c
     }
 
@@ -1044,20 +1056,7 @@ impl Row<'_> {
             last + LANES <= self.planes.len(),
             "the window stays in the planes"
         );
-        // The tests' coefficients times `-log2(e)`: a tap's exponents are then powers of two,
-        // added up negative, without a negation and a change of base a weight.
-        let mut c = *centre;
-        let base = V::splat(-std::f32::consts::LOG2_E);
-        for k in [
-            &mut c.c_direct,
-            &mut c.c_indirect,
-            &mut c.c_depth,
-            &mut c.c_normal,
-            &mut c.c_texture,
-            &mut c.c_texture2,
-        ] {
-            *k = *k * base;
-        }
+        let c = centre;
         let floor = V::splat(crate::exp::LOWEST * std::f32::consts::LOG2_E);
         let zero = V::splat(0.0);
         let mut s = Sums {
