@@ -11,7 +11,8 @@
 //! takes the rows of one class modulo `step` one after the other, so the rows its taps read stay
 //! in the cache from one output row to the next (in image order, the holes of 8 and 16 rows
 //! took a third longer than those of 1). Each 16-pixel group writes its result, the pixels that
-//! pass through kept, and the luminances the next pass tests, in lanes; the luminance test's
+//! pass through kept, and the luminances the next pass tests, in lanes (the last pass its light
+//! alone: nothing reads its variance and luminance); the luminance test's
 //! sigma (the blurred variance) is worked out in the group from the variance planes. A group
 //! whose pixels all pass through does not run the kernel (an outdoor frame's sky).
 //!
@@ -34,7 +35,7 @@ use pathlight_core::color::LUMINANCE;
 use rayon::prelude::*;
 use std::f32::consts::LOG2_E;
 
-use crate::simd::{dispatch, exp2_neg_in_range, store_first, F32xN, Isa, Kernel, LANES};
+use crate::simd::{dispatch, exp2_neg_in_range, iota, store_first, F32xN, Isa, Kernel, LANES};
 
 /// Widest padding the planes take: holes up to 32 pixels (six passes).
 pub const MAX_PAD: usize = 64;
@@ -54,11 +55,9 @@ pub fn spline(kernel: u32) -> [f32; 3] {
 const Z: usize = 0;
 const NX: usize = 1;
 const G: usize = 4;
-/// The sum of the variance blur's weights over the pixels inside the image.
-const SUM: usize = 5;
 /// 1 where the pixel passes through (the sky and light sources), else 0.
-const THROUGH: usize = 6;
-const STATIC: usize = 7;
+const THROUGH: usize = 5;
+const STATIC: usize = 6;
 // Dynamic planes (per pass) of `S` signals (direct and indirect light, or their sum): each
 // signal's rgb, then each one's variance, then each one's luminance.
 const L: usize = 0;
@@ -322,16 +321,6 @@ impl Planes {
             (self.fixed, self.moving) = (fixed, moving);
             self.statics.clear();
             self.statics.resize(fixed.len(), 0.0);
-            // The blur is (1/4, 1/2, 1/4) across times the same down: its weights inside the
-            // image sum to the product of the two (exactly: sixteenths).
-            let inside = |c: usize, n: usize| {
-                1.0 - if c == 0 { 0.25 } else { 0.0 } - if c + 1 == n { 0.25 } else { 0.0 }
-            };
-            fixed.for_rows(&mut self.statics, |y, row| {
-                for (x, sum) in row[plane(&fixed, SUM)][..width].iter_mut().enumerate() {
-                    *sum = inside(x, width) * inside(y as usize, height);
-                }
-            });
             for buffer in [&mut self.current, &mut self.next] {
                 buffer.clear();
                 buffer.resize(moving.len(), 0.0);
@@ -425,8 +414,9 @@ impl Planes {
     }
 
     /// One pass of a kernel `kernel` pixels wide (3 or 5) with holes of `step` pixels:
-    /// `current` filtered into `next`, then swapped.
-    pub fn pass(&mut self, kernel: u32, step: usize, sigma_l: f32, sigma_z: f32) {
+    /// `current` filtered into `next`, then swapped. With `last`, only the light is written
+    /// (the variance and the luminance that a next pass would test are left as they were).
+    pub fn pass(&mut self, kernel: u32, step: usize, sigma_l: f32, sigma_z: f32, last: bool) {
         let g = self.moving;
         // What makes the passes' unchecked loads (`Pass::lanes`) safe: every tap of a 5x5
         // kernel with holes of `step` lies within the padding.
@@ -468,6 +458,7 @@ impl Planes {
             sigma_z,
             wide: kernel != 3,
             signals: self.signals,
+            variance: !last,
             isa: self.isa,
         };
         g.for_rows_by(&mut self.next, step, |y, row| pass.row(y, row));
@@ -495,6 +486,9 @@ struct Pass<'a> {
     /// The 5x5 kernel (else 3x3).
     wide: bool,
     signals: usize,
+    /// The variance and the luminance are written (not by the last pass, whose light alone is
+    /// read): the taps' squared weights summed.
+    variance: bool,
     /// The widest lanes to use.
     isa: Isa,
     /// The kernel's taps but the centre, row by row (the order the scalar pass sums in).
@@ -534,12 +528,16 @@ struct Row<'p, 'a> {
 impl Kernel<()> for Row<'_, '_> {
     #[inline(always)]
     fn run<V: F32xN>(self) {
-        let p = self.pass;
-        match (p.wide, p.signals) {
-            (true, 2) => p.row_lanes::<V, 2, 2>(self.y, self.row),
-            (false, 2) => p.row_lanes::<V, 1, 2>(self.y, self.row),
-            (true, _) => p.row_lanes::<V, 2, 1>(self.y, self.row),
-            (false, _) => p.row_lanes::<V, 1, 1>(self.y, self.row),
+        let (p, y, row) = (self.pass, self.y, self.row);
+        match (p.wide, p.signals, p.variance) {
+            (true, 2, true) => p.row_lanes::<V, 2, 2, true>(y, row),
+            (false, 2, true) => p.row_lanes::<V, 1, 2, true>(y, row),
+            (true, _, true) => p.row_lanes::<V, 2, 1, true>(y, row),
+            (false, _, true) => p.row_lanes::<V, 1, 1, true>(y, row),
+            (true, 2, false) => p.row_lanes::<V, 2, 2, false>(y, row),
+            (false, 2, false) => p.row_lanes::<V, 1, 2, false>(y, row),
+            (true, _, false) => p.row_lanes::<V, 2, 1, false>(y, row),
+            (false, _, false) => p.row_lanes::<V, 1, 1, false>(y, row),
         }
     }
 }
@@ -551,9 +549,13 @@ impl Pass<'_> {
     }
 
     #[inline(always)]
-    fn row_lanes<V: F32xN, const R: i64, const S: usize>(&self, y: i64, row: &mut [f32]) {
+    fn row_lanes<V: F32xN, const R: i64, const S: usize, const VAR: bool>(
+        &self,
+        y: i64,
+        row: &mut [f32],
+    ) {
         for x0 in (0..self.moving.width).step_by(V::N) {
-            self.group::<V, R, S>(x0 as i64, y, row);
+            self.group::<V, R, S, VAR>(x0 as i64, y, row);
         }
     }
 
@@ -599,12 +601,32 @@ impl Pass<'_> {
         unsafe { Self::lanes(self.current, at + p * self.moving.pitch) }
     }
 
+    /// The sum of the variance blur's weights ([`BLUR`]) over the pixels inside the image, at
+    /// the [`LANES`] pixels from (x0, y) on: the blur is (1/4, 1/2, 1/4) across times the same
+    /// down, so the sum is the product of the two's sums inside (exactly: sixteenths).
+    #[inline(always)]
+    fn blur_inside<V: F32xN>(&self, x0: i64, y: i64) -> V {
+        let (w, h) = (self.moving.width, self.moving.height);
+        let (zero, quarter) = (V::splat(0.0), V::splat(0.25));
+        let x = V::splat(x0 as f32) + iota::<V>();
+        let first = V::select(x.ne(zero), zero, quarter);
+        let last = V::select(x.ne(V::splat((w - 1) as f32)), zero, quarter);
+        let down =
+            1.0 - if y == 0 { 0.25 } else { 0.0 } - if y + 1 == h as i64 { 0.25 } else { 0.0 };
+        (V::splat(1.0) - first - last) * V::splat(down)
+    }
+
     /// The [`LANES`] pixels from (x0, y) on filtered by a kernel of radius `R` (1: 3x3, 2: 5x5)
     /// over `S` signals into `row`: the weighted means, the pixels that pass through kept as
-    /// they are, and the luminances of the result. (No closures here: see
-    /// `simd::exp2_neg_in_range`.)
+    /// they are, and (with `VAR`) the variances and the luminances of the result. (No closures
+    /// here: see `simd::exp2_neg_in_range`.)
     #[inline(always)]
-    fn group<V: F32xN, const R: i64, const S: usize>(&self, x0: i64, y: i64, row: &mut [f32]) {
+    fn group<V: F32xN, const R: i64, const S: usize, const VAR: bool>(
+        &self,
+        x0: i64,
+        y: i64,
+        row: &mut [f32],
+    ) {
         let g = self.moving;
         let (v, lum) = (v(S), lum(S));
         let through_plane = self.st::<V>(THROUGH, x0, y);
@@ -612,7 +634,7 @@ impl Pass<'_> {
         // A group whose pixels all pass through (the sky of an outdoor frame; lanes past the
         // row's end do not) keeps them without running the kernel (the sums are not used).
         let s = if V::any(through_plane.ne(V::splat(1.0))) {
-            self.sums::<V, R, S>(x0, y)
+            self.sums::<V, R, S, VAR>(x0, y)
         } else {
             let (one, zero) = (V::splat(1.0), V::splat(0.0));
             Sums {
@@ -637,11 +659,20 @@ impl Pass<'_> {
                 c[k] = V::select(through, self.dy(p, x0, y), s.light[sig][k] * inv_w);
                 out[k] = c[k];
             }
-            let var = s.var[sig] * inv_w * inv_w;
-            out[3] = V::select(through, self.dy(v + sig, x0, y), flush_variance_lanes(var));
-            out[4] = c[0] * r + c[1] * gr + c[2] * b;
             let l = L + 3 * sig;
-            for (value, p) in out.into_iter().zip([l, l + 1, l + 2, v + sig, lum + sig]) {
+            let planes = if VAR {
+                let var = s.var[sig] * inv_w * inv_w;
+                out[3] = V::select(through, self.dy(v + sig, x0, y), flush_variance_lanes(var));
+                out[4] = c[0] * r + c[1] * gr + c[2] * b;
+                5
+            } else {
+                3
+            };
+            for (value, p) in out
+                .into_iter()
+                .zip([l, l + 1, l + 2, v + sig, lum + sig])
+                .take(planes)
+            {
                 // In the image's last group the lanes past its width are left alone (the
                 // padding stays zero).
                 store_first(value, n, &mut row[p * g.pitch + g.pad + x0 as usize..]);
@@ -650,9 +681,13 @@ impl Pass<'_> {
     }
 
     /// The weighted sums of a kernel of radius `R` over the [`LANES`] pixels from (x0, y) on,
-    /// for `S` signals.
+    /// for `S` signals (the variance's only with `VAR`).
     #[inline(always)]
-    fn sums<V: F32xN, const R: i64, const S: usize>(&self, x0: i64, y: i64) -> Sums<V, S> {
+    fn sums<V: F32xN, const R: i64, const S: usize, const VAR: bool>(
+        &self,
+        x0: i64,
+        y: i64,
+    ) -> Sums<V, S> {
         let h = spline(2 * R as u32 + 1);
         let (v, lum) = (v(S), lum(S));
         let splat = V::splat;
@@ -674,9 +709,9 @@ impl Pass<'_> {
         // The luminance test's `-log2(e) / (sigma_l sqrt(g(var)) + 1e-4)` (its exponent in
         // base 2), g the variance's 3x3
         // Gaussian over the pixels inside the image (the scalar pass's: the border's zeros add
-        // nothing, and plane `SUM` holds the same normalisation, summed in the same order).
+        // nothing, and `blur_inside` is the same normalisation, summed in the same order).
         let mut minus_inv = [kc; S];
-        let sum: V = self.st(SUM, x0, y);
+        let sum: V = self.blur_inside(x0, y);
         for sig in 0..S {
             lc[sig] = self.dy(lum + sig, x0, y);
             s.var[sig] = self.dy::<V>(v + sig, x0, y) * kc * kc;
@@ -724,17 +759,17 @@ impl Pass<'_> {
             let [a, b, c, d, e, f, g, h]: &[Tap; 8] =
                 self.taps[..].try_into().expect("a 3x3 kernel's taps");
             let (side, corner) = (minus_rz[0], minus_rz[1]);
-            self.tap(&mut s, &centre, a, corner, &cut);
-            self.tap(&mut s, &centre, b, side, &cut);
-            self.tap(&mut s, &centre, c, corner, &cut);
-            self.tap(&mut s, &centre, d, side, &cut);
-            self.tap(&mut s, &centre, e, side, &cut);
-            self.tap(&mut s, &centre, f, corner, &cut);
-            self.tap(&mut s, &centre, g, side, &cut);
-            self.tap(&mut s, &centre, h, corner, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, a, corner, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, b, side, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, c, corner, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, d, side, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, e, side, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, f, corner, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, g, side, &cut);
+            self.tap::<V, S, VAR>(&mut s, &centre, h, corner, &cut);
         } else {
             for tap in &self.taps {
-                self.tap(&mut s, &centre, tap, minus_rz[tap.distance], &cut);
+                self.tap::<V, S, VAR>(&mut s, &centre, tap, minus_rz[tap.distance], &cut);
             }
         }
         s
@@ -743,7 +778,7 @@ impl Pass<'_> {
     /// Adds `tap` of the centres `c` to the sums `s` of `S` signals (`minus_rz`: the depth
     /// test's term at the tap's distance).
     #[inline(always)]
-    fn tap<V: F32xN, const S: usize>(
+    fn tap<V: F32xN, const S: usize, const VAR: bool>(
         &self,
         s: &mut Sums<V, S>,
         c: &Centre<V, S>,
@@ -777,7 +812,9 @@ impl Pass<'_> {
                 let l: V = self.dy_at(L + 3 * sig + k, qm);
                 s.light[sig][k] = l.mul_add(wq, s.light[sig][k]);
             }
-            s.var[sig] = (self.dy_at::<V>(v + sig, qm) * wq).mul_add(wq, s.var[sig]);
+            if VAR {
+                s.var[sig] = (self.dy_at::<V>(v + sig, qm) * wq).mul_add(wq, s.var[sig]);
+            }
         }
     }
 }
@@ -838,8 +875,11 @@ const MIN_COSINE: f32 = 0.8;
 /// `base`, in lanes, `u = 1 - cos`: `log2(1 - u)` by its series to `u^4`. What it leaves out
 /// is about `128 u^5 / 5` of the natural exponent, a weight's relative error of 8e-6 at `u =
 /// 0.05` (where the weight is 1.4e-3 of an equal normal's), under the exponential's own 2e-5
-/// wherever a weight counts. Below a cosine of [`MIN_COSINE`] (and for NaN) it is -100: a
-/// weight of 0.
+/// wherever a weight counts. It needs no test of [`MIN_COSINE`]: below it the series is
+/// under -41 (-41.19 at `u = 0.2`, falling as `u` grows), and a pass's `base` is at most -3
+/// (the kernel's largest weight but the centre's, 1/8), so the tap's weight is under 2^-44,
+/// below [`MIN_WEIGHT`]: 0, as the scalar pass's test gives (a NaN cosine gives a NaN exponent,
+/// which the tap's floor makes a weight under [`MIN_WEIGHT`] too).
 #[inline(always)]
 pub(crate) fn log2_normal_weight_lanes<V: F32xN>(cos: V, base: V) -> V {
     const K: f32 = 128.0 * LOG2_E;
@@ -848,8 +888,7 @@ pub(crate) fn log2_normal_weight_lanes<V: F32xN>(cos: V, base: V) -> V {
     let a = V::splat(-K / 4.0).mul_add(u, V::splat(-K / 3.0));
     let a = a.mul_add(u, V::splat(-K / 2.0));
     let a = a.mul_add(u, V::splat(-K));
-    let e = a.mul_add(u, base);
-    V::select(cos.ge(V::splat(MIN_COSINE)), e, V::splat(-100.0))
+    a.mul_add(u, base)
 }
 
 /// [`normal_weight`] in lanes.
@@ -870,4 +909,42 @@ pub fn normal_weight(cos: f32) -> f32 {
         w *= w;
     }
     w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simd::{dispatch, Isa, Kernel};
+
+    /// Below [`MIN_COSINE`] (and for NaN) the normal's series, with the largest `base` a pass
+    /// gives a tap (-3), floored as a tap floors it, is a weight under [`MIN_WEIGHT`]: the
+    /// passes need no test of the cosine.
+    #[test]
+    fn the_normal_series_weighs_nothing_below_the_least_cosine() {
+        struct Check;
+        impl Kernel<()> for Check {
+            fn run<V: F32xN>(self) {
+                let floor = V::splat(-30.0 * LOG2_E);
+                let cosines = (0..=18_000)
+                    .map(|k| -1.0 + k as f32 * 1e-4)
+                    .take_while(|&c| c < MIN_COSINE)
+                    .chain([f32::NAN, f32::NEG_INFINITY, -1e30]);
+                let mut largest = 0.0f32;
+                for cos in cosines {
+                    let e = log2_normal_weight_lanes(V::splat(cos), V::splat(-3.0));
+                    let w = exp2_neg_in_range(e.at_least(floor)).to_array()[0];
+                    largest = largest.max(w);
+                }
+                assert!(largest < MIN_WEIGHT, "a weight of {largest}");
+                // And at the least cosine itself the series still counts.
+                let e = log2_normal_weight_lanes(V::splat(MIN_COSINE), V::splat(0.0));
+                let w = exp2_neg_in_range(e.at_least(floor)).to_array()[0];
+                let exact = normal_weight(MIN_COSINE);
+                assert!((w - exact).abs() < 0.01 * exact, "{w} against {exact}");
+            }
+        }
+        for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
+            dispatch(isa, Check);
+        }
+    }
 }

@@ -303,7 +303,8 @@ impl Svgf {
                 );
             });
             for i in 0..iterations {
-                self.planes.pass(kernel, 1 << i, SIGMA_L, SIGMA_Z);
+                self.planes
+                    .pass(kernel, 1 << i, SIGMA_L, SIGMA_Z, i + 1 == iterations);
                 if i == 0 {
                     self.keep_planes_light(f, converge);
                 }
