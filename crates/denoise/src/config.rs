@@ -240,6 +240,14 @@ pub struct FilterConfig {
     /// Data-driven, `sure`: the radius of the neighbourhood the risk estimates are averaged
     /// over (0: the pixel's own).
     pub sure_radius: u32,
+    /// Data-driven, on the accumulated image of a still camera (and SVGF's handover to it):
+    /// the image is filtered again only once the epoch's accumulated frames have grown by this
+    /// factor since it was last filtered, and shown as it was meanwhile, as offline renderers
+    /// denoise every so many passes (not in the thesis). The filter's cost then grows with
+    /// the logarithm of the frames instead of with them: at 1.25 a still view of 300 frames is
+    /// filtered 22 times. At most 1 (0 by default) filters every frame. A change of the
+    /// filter's configuration filters at once.
+    pub refresh_growth: f32,
     /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
     pub rpf_boxes: Vec<u32>,
     /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
@@ -287,6 +295,7 @@ impl Default for FilterConfig {
             sky_coverage: true,
             sure: false,
             sure_radius: 3,
+            refresh_growth: 0.0,
             rpf_boxes: vec![55, 35, 17, 7],
             rpf_noise: 0.02,
             rpf_outliers: true,
@@ -354,6 +363,13 @@ impl FilterConfig {
             return bad(
                 "frame.filter.sigma_normal_lobe",
                 &self.sigma_normal_lobe,
+                "finite and at least 0",
+            );
+        }
+        if !(self.refresh_growth.is_finite() && self.refresh_growth >= 0.0) {
+            return bad(
+                "frame.filter.refresh_growth",
+                &self.refresh_growth,
                 "finite and at least 0",
             );
         }

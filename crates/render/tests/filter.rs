@@ -275,6 +275,54 @@ fn svgf_hands_over_to_the_data_driven_filter_while_the_camera_is_still() {
     assert!(handover.image() != data_driven.image());
 }
 
+/// `refresh_growth`: a still view's data-driven image is filtered again only once the
+/// accumulated frames have grown by the factor (1.25: at frames 1, 2, 3, 4, 5, 7, 9, 12), and
+/// is the filter's image of the frame it was last filtered at meanwhile; a new configuration
+/// or a camera move filters at once. At most 1, every frame is filtered, as by default.
+#[test]
+fn a_still_view_is_filtered_again_as_its_frames_grow() {
+    let world = cornell();
+    let with = |growth: f32| {
+        let mut c = config(Method::DataDriven);
+        c.frame.filter.refresh_growth = growth;
+        c
+    };
+    let (mut every, mut once, mut grown) = (
+        Pipeline::new(with(0.0)),
+        Pipeline::new(with(1.0)),
+        Pipeline::new(with(1.25)),
+    );
+    let mut last = Vec::new();
+    for frame in 1..=12u32 {
+        for p in [&mut every, &mut once, &mut grown] {
+            assert_eq!(p.render_frame(&world).accumulated, frame);
+        }
+        assert!(once.image() == every.image(), "frame {frame}");
+        if [1, 2, 3, 4, 5, 7, 9, 12].contains(&frame) {
+            assert!(grown.image() == every.image(), "frame {frame}");
+            last = grown.image();
+        } else {
+            assert!(grown.image() == last, "frame {frame}");
+            assert!(grown.image() != every.image(), "frame {frame}");
+        }
+    }
+    // A new configuration filters at once, and so does a camera move (a new epoch).
+    let mut c = with(1.25);
+    c.frame.filter.kernel = 7;
+    let mut moved = c.clone();
+    moved.camera.look_from = Some([0.05, 1.0, 3.5]);
+    for (c, accumulated) in [(c, 13), (moved, 1)] {
+        for p in [&mut every, &mut grown] {
+            let growth = p.config().frame.filter.refresh_growth;
+            let mut c = c.clone();
+            c.frame.filter.refresh_growth = growth;
+            p.set_config(&c);
+            assert_eq!(p.render_frame(&world).accumulated, accumulated);
+        }
+        assert!(grown.image() == every.image());
+    }
+}
+
 /// RPF's vectors of a quad under a constant sky, seen from its front: a camera ray that misses
 /// the quad is the sky's; every bounce off the quad leaves the scene, so its second vertex is
 /// a scene's diagonal (here 2 sqrt 2) from the first along the bounce, its normal facing back.

@@ -511,5 +511,14 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 egui::Slider::new(&mut f.sure_radius, 0..=8).text("SURE radius"),
             );
         });
+        ui.add(
+            egui::Slider::new(&mut f.refresh_growth, 0.0..=2.0)
+                .text("filter again after the frames grow (x)"),
+        )
+        .on_hover_text(
+            "Not in the thesis: a still view is filtered again only once its accumulated \
+             frames have grown by this factor, and shown as it was meanwhile (at most 1: \
+             every frame)",
+        );
     });
 }

@@ -53,6 +53,14 @@
 //!   meanwhile: its history stays the still view's, the
 //!   view the next move's motion vectors start from, so it carries on as if those frames had
 //!   not been.
+//! - **Filtering a still view again as it grows** (`refresh_growth`, not in the thesis): the
+//!   data-driven filter's image of the accumulated history (alone or in SVGF's handover) is
+//!   filtered again only once the epoch's frames have grown by that factor since it was last
+//!   filtered, and shown as it was meanwhile, as offline renderers denoise every so many
+//!   passes: the filter's cost grows with the logarithm of a still view's frames, and the time
+//!   goes to samples. The pipeline keeps the epoch, the frame and the filter's configuration it
+//!   last filtered at (`frame::Filtered`); a new configuration or epoch filters at once. The
+//!   features' statistics are gathered every frame all the same.
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;

@@ -192,6 +192,16 @@ pub struct Pipeline {
     deferred: Option<u64>,
     /// The buffers the next frame traces into meanwhile.
     spare: Spare,
+    /// When the data-driven filter last filtered the accumulated image (`refresh_growth`).
+    filtered: Option<Filtered>,
+}
+
+/// The epoch, its frames and the filter's configuration when the data-driven filter last
+/// filtered the accumulated image.
+struct Filtered {
+    epoch: u64,
+    frames: u32,
+    config: pathlight_denoise::FilterConfig,
 }
 
 /// The G-buffer and lighting of a frame whose features wait to be gathered, and its epoch
@@ -238,6 +248,7 @@ impl Pipeline {
             carried: false,
             deferred: None,
             spare: Spare::default(),
+            filtered: None,
         }
     }
 
@@ -656,7 +667,25 @@ impl Pipeline {
                         .gather(self.epoch, &self.gbuffer, &self.lighting);
                 }
             }
+            // With `refresh_growth`, a still view's data-driven image stays as it was until
+            // the frames have grown by that factor.
+            let data_driven = method == pathlight_denoise::Method::DataDriven;
+            let stays = data_driven
+                && !self.filter.image.is_empty()
+                && self.filtered.as_ref().is_some_and(|f| {
+                    f.epoch == self.epoch
+                        && f.config == *filter
+                        && (self.frames as f32) < f.frames as f32 * filter.refresh_growth
+                });
             let run = (traced || !svgf).then(|| {
+                if stays {
+                    return Ok(());
+                }
+                self.filtered = data_driven.then(|| Filtered {
+                    epoch: self.epoch,
+                    frames: self.frames,
+                    config: filter.clone(),
+                });
                 self.filter
                     .run(method, filter, &self.history, &self.gbuffer, &self.lighting)
             });
