@@ -3,7 +3,9 @@
 //! [`State`]. The lanes' temporal pass reads a group's fields with one load each where its
 //! pixels reproject to consecutive pixels of one row (a still camera, or one whose motion
 //! moves a group by the same whole pixels), gathers elsewhere, and writes them with one store
-//! each; the scalar passes read and write a pixel's [`State`].
+//! each, past the caches (`simd::stream_first`: the next frame reads them only after the
+//! a-trous passes' tens of megabytes, and the stores need not read the lines first; the
+//! planes begin on a cache line for it); the scalar passes read and write a pixel's [`State`].
 
 use glam::Vec3;
 
@@ -40,15 +42,38 @@ pub(crate) const FIELDS: usize = 16;
 pub(crate) struct History {
     width: usize,
     height: usize,
-    data: Vec<f32>,
+    /// The planes from `start` on (so that they begin on a cache line: [`ALIGN`]).
+    storage: Vec<f32>,
+    start: usize,
 }
+
+/// The floats the planes may begin after the storage's start: 64 bytes.
+const ALIGN: usize = 16;
 
 impl History {
     /// `width x height` pixels without a history (as `State::default()`).
     pub fn reset(&mut self, width: usize, height: usize) {
         (self.width, self.height) = (width, height);
-        self.data.clear();
-        self.data.resize(FIELDS * width * height, 0.0);
+        self.storage.clear();
+        self.storage.resize(FIELDS * width * height + ALIGN, 0.0);
+        self.start = self
+            .storage
+            .as_ptr()
+            .cast::<u8>()
+            .align_offset(4 * ALIGN)
+            .div_ceil(4)
+            .min(ALIGN);
+    }
+
+    /// The planes.
+    fn data(&self) -> &[f32] {
+        &self.storage[self.start..][..FIELDS * self.width * self.height]
+    }
+
+    /// The planes to write.
+    fn data_mut(&mut self) -> &mut [f32] {
+        let len = FIELDS * self.width * self.height;
+        &mut self.storage[self.start..][..len]
     }
 
     /// No pixels.
@@ -59,7 +84,9 @@ impl History {
     /// Made `width x height` pixels, their fields left as they are if it was (they are all
     /// to be written).
     pub fn fit(&mut self, width: usize, height: usize) {
-        if (self.width, self.height, self.data.len()) != (width, height, FIELDS * width * height) {
+        if (self.width, self.height) != (width, height)
+            || self.storage.len() != FIELDS * width * height + ALIGN
+        {
             self.reset(width, height);
         }
     }
@@ -71,12 +98,12 @@ impl History {
 
     /// The planes, row by row (row `y`'s field `k` from `(y * FIELDS + k) * width` on).
     pub fn planes(&self) -> &[f32] {
-        &self.data
+        self.data()
     }
 
     /// [`Self::planes`] to write (a row's `FIELDS * width` at a time).
     pub fn planes_mut(&mut self) -> &mut [f32] {
-        &mut self.data
+        self.data_mut()
     }
 
     /// Where pixel `i`'s field 0 is in [`Self::planes`] (field `k` is `k * width` further).
@@ -87,13 +114,13 @@ impl History {
 
     /// Field `k` of pixel `i`'s state.
     pub fn field(&self, i: usize, k: usize) -> f32 {
-        self.data[self.at(i) + k * self.width]
+        self.data()[self.at(i) + k * self.width]
     }
 
     /// Field `k` of row `y`'s pixels.
     pub fn row_field(&self, y: usize, k: usize) -> &[f32] {
         let at = (y * FIELDS + k) * self.width;
-        &self.data[at..at + self.width]
+        &self.data()[at..at + self.width]
     }
 
     /// Pixel `i`'s luminance moments.
@@ -104,7 +131,8 @@ impl History {
     /// Pixel `i`'s state.
     pub fn get(&self, i: usize) -> State {
         let (at, w) = (self.at(i), self.width);
-        let f = |k: usize| self.data[at + k * w];
+        let data = self.data();
+        let f = |k: usize| data[at + k * w];
         let v = |k: usize| Vec3::new(f(k), f(k + 1), f(k + 2));
         State {
             light: [v(LIGHT), v(LIGHT + 3)],
@@ -121,7 +149,7 @@ impl History {
         let (at, w) = (self.at(i), self.width);
         for (c, light) in light.iter().enumerate() {
             for (k, &x) in light.to_array().iter().enumerate() {
-                self.data[at + (LIGHT + 3 * c + k) * w] = x;
+                self.data_mut()[at + (LIGHT + 3 * c + k) * w] = x;
             }
         }
     }
@@ -130,7 +158,8 @@ impl History {
     pub fn set(&mut self, i: usize, s: &State) {
         self.set_light(i, &s.light);
         let (at, w) = (self.at(i), self.width);
-        let mut put = |k: usize, value: f32| self.data[at + k * w] = value;
+        let data = self.data_mut();
+        let mut put = |k: usize, value: f32| data[at + k * w] = value;
         for (k, &m) in s.m.iter().enumerate() {
             put(MOMENTS + k, m);
         }

@@ -38,6 +38,17 @@ pub trait F32xN:
     /// # Safety
     /// `p..p + N` is writable.
     unsafe fn store(self, p: *mut f32);
+    /// [`Self::store`] past the caches (a non-temporal store) where the processor has it:
+    /// for buffers read again only after many more bytes have gone through the caches. The
+    /// writing thread ends its stores with [`store_fence`] before another reads them.
+    ///
+    /// # Safety
+    /// `p..p + N` is writable and aligned to its size (`4 N` bytes).
+    #[inline(always)]
+    unsafe fn stream(self, p: *mut f32) {
+        // SAFETY: the caller's contract.
+        unsafe { self.store(p) }
+    }
     fn splat(x: f32) -> Self;
     /// The lanes in the first `N` values (the rest zero).
     fn to_array(self) -> [f32; LANES];
@@ -330,6 +341,53 @@ pub fn store_first<V: F32xN>(value: V, n: usize, out: &mut [f32]) {
         unsafe { value.store(out.as_mut_ptr()) }
     } else {
         out[..n].copy_from_slice(&value.to_array()[..n]);
+    }
+}
+
+/// [`store_first`] past the caches ([`F32xN::stream`]) where all `N` lanes are stored and
+/// `out` is aligned to their size, else as [`store_first`] does.
+#[inline(always)]
+pub fn stream_first<V: F32xN>(value: V, n: usize, out: &mut [f32]) {
+    if n == V::N && out.as_ptr().cast::<u8>().align_offset(4 * V::N) == 0 {
+        assert!(V::N <= out.len());
+        // SAFETY: checked just above: in bounds, and aligned to the lanes' size.
+        unsafe { value.stream(out.as_mut_ptr()) }
+    } else {
+        store_first(value, n, out);
+    }
+}
+
+/// Copies `src` into `out` (of the same length) with [`stream_first`]'s stores, in lanes of
+/// `isa` at most.
+pub fn stream_copy(isa: Isa, out: &mut [f32], src: &[f32]) {
+    struct Copy<'a> {
+        out: &'a mut [f32],
+        src: &'a [f32],
+    }
+    impl Kernel<()> for Copy<'_> {
+        #[inline(always)]
+        fn run<V: F32xN>(self) {
+            for (out, src) in self.out.chunks_mut(V::N).zip(self.src.chunks(V::N)) {
+                if out.len() == V::N {
+                    stream_first(load_first::<V>(src), V::N, out);
+                } else {
+                    out.copy_from_slice(src);
+                }
+            }
+        }
+    }
+    assert_eq!(out.len(), src.len());
+    dispatch(isa, Copy { out, src });
+}
+
+/// Orders this thread's earlier [`F32xN::stream`] stores before its later stores (`sfence`),
+/// so that another thread which synchronises with it afterwards reads them.
+#[inline(always)]
+pub fn store_fence() {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE, which has `sfence`, is part of every x86-64 processor.
+    unsafe {
+        std::arch::x86_64::_mm_sfence()
     }
 }
 
@@ -649,6 +707,10 @@ impl F32xN for Avx512 {
         avx512!(_mm512_storeu_ps(p, self.0))
     }
     #[inline(always)]
+    unsafe fn stream(self, p: *mut f32) {
+        avx512!(_mm512_stream_ps(p, self.0))
+    }
+    #[inline(always)]
     fn splat(x: f32) -> Self {
         Self(avx512!(_mm512_set1_ps(x)))
     }
@@ -876,6 +938,10 @@ impl F32xN for Avx2 {
         avx2!(_mm256_storeu_ps(p, self.0))
     }
     #[inline(always)]
+    unsafe fn stream(self, p: *mut f32) {
+        avx2!(_mm256_stream_ps(p, self.0))
+    }
+    #[inline(always)]
     fn splat(x: f32) -> Self {
         Self(avx2!(_mm256_set1_ps(x)))
     }
@@ -972,6 +1038,31 @@ impl F32xN for Avx2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Streamed stores write what plain ones would, aligned or not, whole groups or a tail,
+    /// with every kind of lanes, and nothing beside.
+    #[test]
+    fn streamed_stores_store() {
+        let src: Vec<f32> = (0..200).map(|k| k as f32 * 0.5 - 7.0).collect();
+        for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
+            for offset in 0..17 {
+                for len in [0, 1, 7, 15, 16, 17, 33, 100] {
+                    let mut out = vec![-1.0f32; len + 40];
+                    stream_copy(isa, &mut out[offset..offset + len], &src[..len]);
+                    store_fence();
+                    assert_eq!(
+                        &out[offset..offset + len],
+                        &src[..len],
+                        "{isa:?} {offset} {len}"
+                    );
+                    assert!(out[..offset]
+                        .iter()
+                        .chain(&out[offset + len..])
+                        .all(|&x| x == -1.0));
+                }
+            }
+        }
+    }
 
     /// Every operation of every type this processor has, against plain `f32` arithmetic.
     #[test]

@@ -80,7 +80,7 @@ use crate::features::{demodulator, demodulator_lanes};
 use crate::history::{History, State, DEPTH, FIELDS, LENGTH, LIGHT, MOMENTS, NORMAL, WEIGHTS2};
 use crate::simd::{
     channels, dispatch, exp_neg_in_range, gather3, iota, load_first, luminance_lanes, max, min,
-    store_first, ByGroups, F32xN, Fetch, Floats, Groups, LANES,
+    store_first, stream_first, ByGroups, F32xN, Fetch, Floats, Groups, LANES,
 };
 use crate::taa::Taa;
 use crate::{simd, FilterError};
@@ -283,7 +283,11 @@ impl Svgf {
                         row,
                         next,
                     };
-                    dispatch(isa, ByGroups(t))
+                    let short = dispatch(isa, ByGroups(t));
+                    // The history's rows were streamed past the caches (the next frame reads
+                    // them, after the a-trous passes' tens of megabytes).
+                    simd::store_fence();
+                    short
                 });
             // Where the history is short, the variance from the neighbourhood's moments.
             let next = &self.next;
@@ -364,7 +368,7 @@ impl Svgf {
     /// The planes' light as this frame's history where it does not keep its integrated light
     /// (the paper's: the first a-trous pass's output).
     fn keep_planes_light(&mut self, f: &SvgfFrame, converge: bool) {
-        let w = f.width;
+        let (w, isa) = (f.width, self.planes.isa);
         self.planes
             .for_light_rows(self.next.planes_mut(), |y, next, view| {
                 let (light, rest) = next.split_at_mut(NORMAL * w);
@@ -374,7 +378,7 @@ impl Svgf {
                     if s >= view.signals {
                         light.fill(0.0);
                     } else if !converge {
-                        light.copy_from_slice(&view.light(s, k)[..w]);
+                        simd::stream_copy(isa, light, &view.light(s, k)[..w]);
                     } else {
                         let source = &view.light(s, k)[..w];
                         for (x, l) in light.iter_mut().enumerate() {
@@ -386,6 +390,7 @@ impl Svgf {
                         }
                     }
                 }
+                simd::store_fence();
             });
     }
 
@@ -892,7 +897,7 @@ impl Groups for Temporal<'_, '_> {
             for (s, light) in light.iter().enumerate().take(signals) {
                 for (k, &c) in light.iter().enumerate() {
                     let kept = V::select(keeps, c, zero);
-                    store_first(kept, n, &mut self.next[(LIGHT + 3 * s + k) * w + x0..]);
+                    stream_first(kept, n, &mut self.next[(LIGHT + 3 * s + k) * w + x0..]);
                 }
             }
         }
@@ -909,7 +914,7 @@ impl Groups for Temporal<'_, '_> {
             (WEIGHTS2, weights2),
         ];
         for (k, value) in fields {
-            store_first(value, n, &mut self.next[k * w + x0..]);
+            stream_first(value, n, &mut self.next[k * w + x0..]);
         }
         V::any(V::and(live, splat(4.0).gt(length)))
     }
