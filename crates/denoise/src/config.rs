@@ -243,10 +243,12 @@ pub struct FilterConfig {
     /// Data-driven, on the accumulated image of a still camera (and SVGF's handover to it):
     /// the image is filtered again only once the epoch's accumulated frames have grown by this
     /// factor since it was last filtered, and shown as it was meanwhile, as offline renderers
-    /// denoise every so many passes (not in the thesis). The filter's cost then grows with
-    /// the logarithm of the frames instead of with them: at 1.25 a still view of 300 frames is
-    /// filtered 22 times. At most 1 (0 by default) filters every frame. A change of the
-    /// filter's configuration filters at once.
+    /// denoise every so many passes (not in the thesis), but for the light a pixel showed as
+    /// its own (where it passed through, and its share of its own light in the `sure` blend),
+    /// which follows the accumulated light. The filter's cost then grows with the logarithm of
+    /// the frames instead of with them: at 1.25 a still view of 300 frames is filtered 22
+    /// times. At most 1 (0 by default) filters every frame. A change of the filter's
+    /// configuration filters at once.
     pub refresh_growth: f32,
     /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
     pub rpf_boxes: Vec<u32>,

@@ -277,8 +277,10 @@ fn svgf_hands_over_to_the_data_driven_filter_while_the_camera_is_still() {
 
 /// `refresh_growth`: a still view's data-driven image is filtered again only once the
 /// accumulated frames have grown by the factor (1.25: at frames 1, 2, 3, 4, 5, 7, 9, 12), and
-/// is the filter's image of the frame it was last filtered at meanwhile; a new configuration
-/// or a camera move filters at once. At most 1, every frame is filtered, as by default.
+/// is the filter's image of the frame it was last filtered at meanwhile, but for the light a
+/// pixel shows as its own (here the light source, which passes through), which follows the
+/// history; a new configuration or a camera move filters at once. At most 1, every frame is
+/// filtered, as by default.
 #[test]
 fn a_still_view_is_filtered_again_as_its_frames_grow() {
     let world = cornell();
@@ -292,20 +294,39 @@ fn a_still_view_is_filtered_again_as_its_frames_grow() {
         Pipeline::new(with(1.0)),
         Pipeline::new(with(1.25)),
     );
-    let mut last = Vec::new();
+    let (mut last, mut passed) = (Vec::new(), Vec::new());
+    let mut through = 0;
     for frame in 1..=12u32 {
         for p in [&mut every, &mut once, &mut grown] {
             assert_eq!(p.render_frame(&world).accumulated, frame);
         }
         assert!(once.image() == every.image(), "frame {frame}");
+        let (image, filtered) = (grown.image(), every.image());
+        let accumulated = grown.sources().linear(DisplayMode::Accumulated);
         if [1, 2, 3, 4, 5, 7, 9, 12].contains(&frame) {
-            assert!(grown.image() == every.image(), "frame {frame}");
-            last = grown.image();
-        } else {
-            assert!(grown.image() == last, "frame {frame}");
-            assert!(grown.image() != every.image(), "frame {frame}");
+            assert!(image == filtered, "frame {frame}");
+            // The pixels that passed through (the light source; the sky outside the box).
+            passed = image
+                .iter()
+                .zip(&accumulated)
+                .map(|(x, a)| x == a)
+                .collect();
+            last = image;
+            continue;
+        }
+        assert!(image != filtered, "frame {frame}");
+        for (i, (&x, &was)) in image.iter().zip(&last).enumerate() {
+            if passed[i] {
+                // Passed through at the refresh: the history's light now.
+                let a = accumulated[i];
+                assert!((x - a).abs().max_element() <= 1e-5 * a.max_element().max(1.0));
+                through += 1;
+            } else {
+                assert_eq!(x, was, "frame {frame}, pixel {i}");
+            }
         }
     }
+    assert!(through > 0, "the light source passes through");
     // A new configuration filters at once, and so does a camera move (a new epoch).
     let mut c = with(1.25);
     c.frame.filter.kernel = 7;
@@ -321,6 +342,67 @@ fn a_still_view_is_filtered_again_as_its_frames_grow() {
         }
         assert!(grown.image() == every.image());
     }
+}
+
+/// `refresh_growth` with the SURE blend: between refreshes each pixel shows the image of the
+/// last refresh plus its shares of its own direct and indirect light (the blend's, `sure-share`)
+/// times how far the history's light has moved since.
+#[test]
+fn between_refreshes_a_pixel_keeps_its_own_light_fresh() {
+    let world = cornell();
+    // Inside the box, so that no pixel's samples leave it (a silhouette against the sky is
+    // shown as it was: its sky part is not the pixel's own light).
+    let mut c = Config {
+        camera: pathlight_render::config::CameraConfig {
+            look_from: Some([0.0, 1.0, 0.5]),
+            look_at: Some([0.0, 1.0, -1.0]),
+            up: Some([0.0, 1.0, 0.0]),
+            fov_y: Some(60.0),
+            ..Default::default()
+        },
+        ..config(Method::DataDriven)
+    };
+    c.frame.filter.sure = true;
+    c.frame.filter.refresh_growth = 1.25;
+    // A colour test far too loose, so that the blend gives many pixels their own light back.
+    (c.frame.filter.sigma_direct, c.frame.filter.sigma_indirect) = (30.0, 30.0);
+    let mut p = Pipeline::new(c);
+    let light = |p: &Pipeline| {
+        let s = p.sources();
+        (
+            s.linear(DisplayMode::Direct),
+            s.linear(DisplayMode::Indirect),
+        )
+    };
+    let (mut last, mut shares, mut then) = (Vec::new(), Vec::new(), (Vec::new(), Vec::new()));
+    let mut moved = 0;
+    for frame in 1..=11u32 {
+        p.render_frame(&world);
+        if [1, 2, 3, 4, 5, 7, 9].contains(&frame) {
+            (last, shares, then) = (p.image(), p.sources().sure_shares.to_vec(), light(&p));
+            continue;
+        }
+        let (direct, indirect) = light(&p);
+        for (i, &x) in p.image().iter().enumerate() {
+            let [d, n] = shares[i];
+            if !(d.is_finite() && n.is_finite()) {
+                continue; // passed through
+            }
+            let expected = last[i] + (direct[i] - then.0[i]) * d + (indirect[i] - then.1[i]) * n;
+            let scale = expected.abs().max_element().max(1.0);
+            assert!(
+                (x - expected).abs().max_element() <= 1e-4 * scale,
+                "frame {frame}, pixel {i}: {x} against {expected}"
+            );
+            if d > 0.5 && x != last[i] {
+                moved += 1;
+            }
+        }
+    }
+    assert!(
+        moved > 0,
+        "some pixel takes its own light back and keeps it fresh"
+    );
 }
 
 /// RPF's vectors of a quad under a constant sky, seen from its front: a camera ray that misses

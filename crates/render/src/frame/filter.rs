@@ -60,7 +60,12 @@
 //!   passes: the filter's cost grows with the logarithm of a still view's frames, and the time
 //!   goes to samples. The pipeline keeps the epoch, the frame and the filter's configuration it
 //!   last filtered at (`frame::Filtered`); a new configuration or epoch filters at once. The
-//!   features' statistics are gathered every frame all the same.
+//!   features' statistics are gathered every frame all the same. What a pixel showed as its
+//!   own light does not age: at a refresh each pixel keeps its shares of its own direct and
+//!   indirect light in the image (1 where it passed through, the `sure` blend's elsewhere, 0
+//!   without the blend and on a silhouette filtered as its hits, whose sky part is not its
+//!   own light alone) and the image less those shares of the history's light; between
+//!   refreshes it shows that plus the same shares of the history's light as it is now.
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
@@ -173,6 +178,9 @@ pub struct Filter {
     /// Data-driven, `sky_coverage`: per pixel the share of samples that hit a surface and the
     /// sky's part of the mean light (1 and zero where the pixel is filtered as it is).
     coverage: Vec<(f32, Vec3)>,
+    /// `refresh_growth`: per pixel, the image at the last refresh less its shares of the
+    /// pixel's own direct and indirect light then, and those shares ([`Self::keep_refresh`]).
+    kept: Vec<(Vec3, [f32; 2])>,
 }
 
 impl Filter {
@@ -395,6 +403,54 @@ impl Filter {
         Ok(())
     }
 
+    /// After the data-driven filter refreshed the image (`refresh_growth`): keeps each pixel's
+    /// shares of its own direct and indirect light in it (the `sure` blend's; 1 where the
+    /// pixel passes through; 0 without the blend and on a silhouette filtered as its hits) and
+    /// the image less those shares of the history's light, for [`Self::refresh_own_light`].
+    pub fn keep_refresh(&mut self, history: &[PixelStats]) {
+        let shares = self.data_driven.shares();
+        self.kept.resize(history.len(), (Vec3::ZERO, [0.0; 2]));
+        self.kept
+            .par_iter_mut()
+            .enumerate()
+            .zip(self.image.par_iter().zip(history.par_iter()))
+            .for_each(|((i, kept), (&image, h))| {
+                let share = if self.depth[i].is_infinite() {
+                    [1.0; 2]
+                } else if self.coverage[i].0 != 1.0 {
+                    [0.0; 2]
+                } else {
+                    shares.get(i).copied().unwrap_or([0.0; 2])
+                };
+                let base = image - h.direct.mean * share[0] - h.indirect.mean * share[1];
+                *kept = if share.iter().all(|s| s.is_finite()) && base.is_finite() {
+                    (base, share)
+                } else {
+                    (image, [0.0; 2])
+                };
+            });
+    }
+
+    /// Between the data-driven filter's refreshes (`refresh_growth`): each pixel's image with
+    /// its shares of its own light ([`Self::keep_refresh`]) as the history has them now, so
+    /// that the light a pixel shows as its own (the sky, light sources, where the `sure` blend
+    /// gives it back) does not age.
+    pub fn refresh_own_light(&mut self, history: &[PixelStats]) {
+        if self.kept.len() != self.image.len() {
+            return;
+        }
+        self.image
+            .par_iter_mut()
+            .zip(self.kept.par_iter().zip(history.par_iter()))
+            .filter(|(_, ((_, share), _))| *share != [0.0; 2])
+            .for_each(|(image, (&(base, share), h))| {
+                let now = base + h.direct.mean * share[0] + h.indirect.mean * share[1];
+                if now.is_finite() {
+                    *image = now;
+                }
+            });
+    }
+
     /// Sizes the buffers both filters read and the output for `n` pixels.
     fn resize(&mut self, n: usize) {
         for v in [
@@ -421,6 +477,7 @@ impl Filter {
         self.svgf.reset();
         self.image.clear();
         self.variance.clear();
+        self.kept.clear();
         self.epoch = None;
     }
 
@@ -439,6 +496,7 @@ impl Filter {
                 * size_of::<f32>()
             + self.coverage.capacity() * size_of::<(f32, Vec3)>()
             + self.variance.capacity() * size_of::<[f32; 5]>()
+            + self.kept.capacity() * size_of::<(Vec3, [f32; 2])>()
     }
 }
 

@@ -679,7 +679,8 @@ impl Pipeline {
                 });
             let run = (traced || !svgf).then(|| {
                 if stays {
-                    return Ok(());
+                    self.filter.refresh_own_light(&self.history);
+                    return Ok::<(), pathlight_denoise::FilterError>(());
                 }
                 self.filtered = data_driven.then(|| Filtered {
                     epoch: self.epoch,
@@ -687,7 +688,11 @@ impl Pipeline {
                     config: filter.clone(),
                 });
                 self.filter
-                    .run(method, filter, &self.history, &self.gbuffer, &self.lighting)
+                    .run(method, filter, &self.history, &self.gbuffer, &self.lighting)?;
+                if data_driven && filter.refresh_growth > 1.0 {
+                    self.filter.keep_refresh(&self.history);
+                }
+                Ok(())
             });
             if let Some(Err(_)) = run {
                 // Not reached: the configuration was validated and the buffers are the
