@@ -925,7 +925,7 @@ mod tests {
         impl Kernel<()> for Check {
             fn run<V: F32xN>(self) {
                 let floor = V::splat(-30.0 * LOG2_E);
-                let cosines = (0..=18_000)
+                let cosines = (0..)
                     .map(|k| -1.0 + k as f32 * 1e-4)
                     .take_while(|&c| c < MIN_COSINE)
                     .chain([f32::NAN, f32::NEG_INFINITY, -1e30]);
