@@ -65,14 +65,19 @@ impl History {
             .min(ALIGN);
     }
 
+    /// The planes' floats.
+    fn len_floats(&self) -> usize {
+        FIELDS * self.width * self.height
+    }
+
     /// The planes.
     fn data(&self) -> &[f32] {
-        &self.storage[self.start..][..FIELDS * self.width * self.height]
+        &self.storage[self.start..][..self.len_floats()]
     }
 
     /// The planes to write.
     fn data_mut(&mut self) -> &mut [f32] {
-        let len = FIELDS * self.width * self.height;
+        let len = self.len_floats();
         &mut self.storage[self.start..][..len]
     }
 
@@ -147,9 +152,10 @@ impl History {
     /// Sets pixel `i`'s light.
     pub fn set_light(&mut self, i: usize, light: &[Vec3; 2]) {
         let (at, w) = (self.at(i), self.width);
+        let data = self.data_mut();
         for (c, light) in light.iter().enumerate() {
             for (k, &x) in light.to_array().iter().enumerate() {
-                self.data_mut()[at + (LIGHT + 3 * c + k) * w] = x;
+                data[at + (LIGHT + 3 * c + k) * w] = x;
             }
         }
     }

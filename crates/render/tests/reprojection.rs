@@ -500,6 +500,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
         svgf_still_handover: 1,
         sure: true,
         sure_radius: 5,
+        refresh_growth: 1.25,
         colour_weights: pathlight_denoise::ColourWeights::Equal,
         ..Default::default()
     };

@@ -400,6 +400,9 @@ impl Filter {
                 .filter(|(_, (share, _))| *share != 1.0)
                 .for_each(|(o, (share, sky))| *o = *o * *share + *sky);
         }
+        if config.refresh_growth > 1.0 {
+            self.keep_refresh(history);
+        }
         Ok(())
     }
 
@@ -407,7 +410,7 @@ impl Filter {
     /// shares of its own direct and indirect light in it (the `sure` blend's; 1 where the
     /// pixel passes through; 0 without the blend and on a silhouette filtered as its hits) and
     /// the image less those shares of the history's light, for [`Self::refresh_own_light`].
-    pub fn keep_refresh(&mut self, history: &[PixelStats]) {
+    fn keep_refresh(&mut self, history: &[PixelStats]) {
         let shares = self.data_driven.shares();
         self.kept.resize(history.len(), (Vec3::ZERO, [0.0; 2]));
         self.kept

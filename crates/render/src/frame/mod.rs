@@ -680,7 +680,7 @@ impl Pipeline {
             let run = (traced || !svgf).then(|| {
                 if stays {
                     self.filter.refresh_own_light(&self.history);
-                    return Ok::<(), pathlight_denoise::FilterError>(());
+                    return Ok(());
                 }
                 self.filtered = data_driven.then(|| Filtered {
                     epoch: self.epoch,
@@ -688,11 +688,7 @@ impl Pipeline {
                     config: filter.clone(),
                 });
                 self.filter
-                    .run(method, filter, &self.history, &self.gbuffer, &self.lighting)?;
-                if data_driven && filter.refresh_growth > 1.0 {
-                    self.filter.keep_refresh(&self.history);
-                }
-                Ok(())
+                    .run(method, filter, &self.history, &self.gbuffer, &self.lighting)
             });
             if let Some(Err(_)) = run {
                 // Not reached: the configuration was validated and the buffers are the
