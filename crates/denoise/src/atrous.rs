@@ -37,7 +37,8 @@ use std::f32::consts::LOG2_E;
 
 use crate::simd::{dispatch, exp2_neg_in_range, iota, store_first, F32xN, Isa, Kernel, LANES};
 
-/// Widest padding the planes take: holes up to 32 pixels (six passes).
+/// Widest padding the planes take: holes up to 32 pixels with the 5x5 kernel (six passes), 64
+/// with the 3x3 one (seven).
 pub const MAX_PAD: usize = 64;
 
 /// The 1D weights at offsets 0, 1, 2 of the a-trous kernel `kernel` pixels wide: the B3
@@ -306,11 +307,13 @@ impl LightView<'_> {
 }
 
 impl Planes {
-    /// Lays the planes out for a `width x height` image, passes with holes up to `max_step`
-    /// pixels (at most [`MAX_PAD`] / 2) and `signals` (1 or 2) signals. The padding is zeroed
-    /// when the layout changes; the passes write the image's pixels only, so it stays zero.
-    pub fn layout(&mut self, width: usize, height: usize, max_step: usize, signals: usize) {
-        let pad = 2 * max_step;
+    /// Lays the planes out for a `width x height` image, passes whose taps reach up to `reach`
+    /// pixels from their centre (the kernel's radius times the widest holes; at least 1, the
+    /// variance blur's; at most [`MAX_PAD`]) and `signals` (1 or 2) signals. The padding is
+    /// zeroed when the layout changes; the passes write the image's pixels only, so it stays
+    /// zero.
+    pub fn layout(&mut self, width: usize, height: usize, reach: usize, signals: usize) {
+        let pad = reach.max(1);
         debug_assert!(pad <= MAX_PAD && (1..=2).contains(&signals));
         self.signals = signals;
         let (fixed, moving) = (
@@ -418,15 +421,15 @@ impl Planes {
     /// (the variance and the luminance that a next pass would test are left as they were).
     pub fn pass(&mut self, kernel: u32, step: usize, sigma_l: f32, sigma_z: f32, last: bool) {
         let g = self.moving;
-        // What makes the passes' unchecked loads (`Pass::lanes`) safe: every tap of a 5x5
-        // kernel with holes of `step` lies within the padding.
+        let r: i64 = if kernel == 3 { 1 } else { 2 };
+        let reach = r as usize * step;
+        // What makes the passes' unchecked loads (`Pass::lanes`) safe: every tap of the
+        // kernel with holes of `step` (and the variance blur's) lies within the padding.
         assert!(
-            2 * step <= g.pad && g.pad == self.fixed.pad,
-            "holes of {step} pixels need a padding of {}, the planes have {}",
-            2 * step,
+            reach <= g.pad && g.pad == self.fixed.pad,
+            "holes of {step} pixels need a padding of {reach}, the planes have {}",
             g.pad
         );
-        let r = if kernel == 3 { 1 } else { 2 };
         let h = spline(kernel);
         let row = |g: &Grid, kx: i64, ky: i64| {
             (g.at(kx * step as i64, ky * step as i64, 0) as isize) - g.at(0, 0, 0) as isize

@@ -257,14 +257,14 @@ impl Svgf {
             self.state.reset(f.width, f.height);
         }
         self.next.fit(f.width, f.height);
-        let pad = 2usize << iterations.saturating_sub(1);
+        // The padding the passes' taps reach into: the kernel's radius times the widest holes.
+        let pad = (if kernel == 3 { 1usize } else { 2 }) << iterations.saturating_sub(1);
         let previous = &self.state;
         // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
         if pad <= MAX_PAD && !self.scalar && n < 1 << 24 {
             // The features, the temporal pass, the variance and the depth gradient worked out
             // in lanes as the planes are laid out: the integrated light straight into them.
-            self.planes
-                .layout(f.width, f.height, pad / 2, signals(split));
+            self.planes.layout(f.width, f.height, pad, signals(split));
             let isa = self.planes.isa;
             self.planes.load_statics_rows(|y, row| {
                 dispatch(isa, ByGroups(Features { f, y, row }));
