@@ -317,29 +317,19 @@ impl FilterConfig {
     /// Checks the parameters: an odd kernel of 1..=[`MAX_KERNEL`], positive finite sigmas,
     /// finite non-negative variance scales, a method that is built.
     pub fn validate(&self) -> Result<(), FilterError> {
-        let bad = |field, value: &dyn std::fmt::Display, requirement: &str| {
-            Err(FilterError::Parameter {
-                field,
-                value: value.to_string(),
-                requirement: requirement.to_owned(),
-            })
-        };
         if self.kernel.is_multiple_of(2) || self.kernel > MAX_KERNEL {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.kernel",
-                &self.kernel,
-                &format!("an odd width from 1 to {MAX_KERNEL}"),
+                self.kernel,
+                format!("an odd width from 1 to {MAX_KERNEL}"),
             );
         }
-        if !(1..=16).contains(&self.atrous_iterations) {
-            return bad(
+        if !(1..=crate::svgf::MAX_ITERATIONS).contains(&self.atrous_iterations) {
+            return FilterError::parameter(
                 "frame.filter.atrous_iterations",
-                &self.atrous_iterations,
-                "from 1 to 16",
+                self.atrous_iterations,
+                format!("from 1 to {}", crate::svgf::MAX_ITERATIONS),
             );
-        }
-        if !matches!(self.atrous_kernel, 3 | 5) {
-            return bad("frame.filter.atrous_kernel", &self.atrous_kernel, "3 or 5");
         }
         for (field, v) in [
             ("frame.filter.sigma_direct", self.sigma_direct),
@@ -351,41 +341,34 @@ impl FilterConfig {
             ("frame.filter.sigma_texture2", self.sigma_texture2),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return bad(field, &v, "a positive number");
+                return FilterError::parameter(field, v, "a positive number");
             }
         }
-        if !(self.svgf_normal_width.is_finite() && self.svgf_normal_width >= 0.0) {
-            return bad(
-                "frame.filter.svgf_normal_width",
-                &self.svgf_normal_width,
-                "finite and at least 0",
-            );
-        }
         if !(self.sigma_normal_lobe.is_finite() && self.sigma_normal_lobe >= 0.0) {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.sigma_normal_lobe",
-                &self.sigma_normal_lobe,
+                self.sigma_normal_lobe,
                 "finite and at least 0",
             );
         }
         if !(self.refresh_growth.is_finite() && self.refresh_growth >= 0.0) {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.refresh_growth",
-                &self.refresh_growth,
+                self.refresh_growth,
                 "finite and at least 0",
             );
         }
         if self.sure_radius > MAX_SURE_RADIUS {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.sure_radius",
-                &self.sure_radius,
-                &format!("at most {MAX_SURE_RADIUS}"),
+                self.sure_radius,
+                format!("at most {MAX_SURE_RADIUS}"),
             );
         }
         if self.sure && self.colour_units != ColourUnits::Variance {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.sure",
-                &self.sure,
+                self.sure,
                 "colour_units = \"variance\" (the risk needs the pixels' standard errors)",
             );
         }
@@ -394,8 +377,13 @@ impl FilterConfig {
             .iter()
             .find(|s| !(s.is_finite() && **s >= 0.0))
         {
-            return bad("frame.filter.variance_scale", s, "finite and at least 0");
+            return FilterError::parameter(
+                "frame.filter.variance_scale",
+                s,
+                "finite and at least 0",
+            );
         }
+        self.svgf_params().validate()?;
         self.rpf_params(0).validate()
     }
 

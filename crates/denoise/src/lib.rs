@@ -48,3 +48,18 @@ pub enum FilterError {
         height: usize,
     },
 }
+
+impl FilterError {
+    /// The refusal of `field`'s `value`, which must be `requirement`, as an `Err`.
+    pub fn parameter<T>(
+        field: &'static str,
+        value: impl std::fmt::Display,
+        requirement: impl Into<String>,
+    ) -> Result<T, Self> {
+        Err(Self::Parameter {
+            field,
+            value: value.to_string(),
+            requirement: requirement.into(),
+        })
+    }
+}

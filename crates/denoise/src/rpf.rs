@@ -129,27 +129,20 @@ impl Default for RpfParams {
 impl RpfParams {
     /// Odd boxes of 1..=[`MAX_BOX`] (at least one), a positive finite noise level.
     pub fn validate(&self) -> Result<(), FilterError> {
-        let bad = |field, value: String, requirement: &str| {
-            Err(FilterError::Parameter {
-                field,
-                value,
-                requirement: requirement.to_owned(),
-            })
-        };
         if self.boxes.is_empty()
             || self
                 .boxes
                 .iter()
                 .any(|&b| b.is_multiple_of(2) || b > MAX_BOX)
         {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.rpf_boxes",
                 format!("{:?}", self.boxes),
-                &format!("one or more odd widths from 1 to {MAX_BOX}"),
+                format!("one or more odd widths from 1 to {MAX_BOX}"),
             );
         }
         if !(self.noise.is_finite() && self.noise > 0.0) {
-            return bad(
+            return FilterError::parameter(
                 "frame.filter.rpf_noise",
                 self.noise.to_string(),
                 "a positive number",

@@ -129,6 +129,35 @@ pub struct SvgfParams {
     pub converge: bool,
 }
 
+impl SvgfParams {
+    /// At most [`MAX_ITERATIONS`] passes (0: the temporal pass alone), a kernel of 3 or 5, a
+    /// finite normal width of at least 0; the fields named as pathlight's configuration
+    /// names them.
+    pub fn validate(&self) -> Result<(), FilterError> {
+        if self.iterations > MAX_ITERATIONS {
+            return FilterError::parameter(
+                "frame.filter.atrous_iterations",
+                self.iterations,
+                format!("at most {MAX_ITERATIONS}"),
+            );
+        }
+        if !matches!(self.kernel, 3 | 5) {
+            return FilterError::parameter("frame.filter.atrous_kernel", self.kernel, "3 or 5");
+        }
+        if !(self.normal_width.is_finite() && self.normal_width >= 0.0) {
+            return FilterError::parameter(
+                "frame.filter.svgf_normal_width",
+                self.normal_width,
+                "finite and at least 0",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The most a-trous passes [`Svgf::filter`] runs (holes of 2^15 pixels).
+pub const MAX_ITERATIONS: u32 = 16;
+
 impl Default for SvgfParams {
     fn default() -> Self {
         Self {
@@ -225,6 +254,7 @@ impl Svgf {
             taa,
             converge,
         } = *p;
+        p.validate()?;
         let n = f.width * f.height;
         for (name, len) in [
             ("direct", f.direct.len()),
@@ -552,6 +582,10 @@ fn integrate(
     } else {
         [(f.direct[i] + f.indirect[i]) / a, Vec3::ZERO]
     };
+    // A sample that is not finite gives its pixel no light, and its moments none either (a
+    // NaN moment would take the luminance test's variance from its neighbours).
+    let finite = current.iter().all(|c| c.is_finite());
+    let current = if finite { current } else { [Vec3::ZERO; 2] };
     let lum = [luminance(current[0]), luminance(current[1])];
     let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
     // Where the pixel converges its history keeps the integrated light (else the first
@@ -570,10 +604,8 @@ fn integrate(
         }
         s
     };
-    let finite = current.iter().all(|c| c.is_finite());
     if passes_through(f, i) || !finite {
-        let light = if finite { current } else { [Vec3::ZERO; 2] };
-        return (light, state(light, now, 0.0, 1.0));
+        return (current, state(current, now, 0.0, 1.0));
     }
     // The normal test's largest squared distance (with `normal_width`).
     let reach = if normal_width > 0.0 {
@@ -755,6 +787,10 @@ impl Groups for Temporal<'_, '_> {
         for c in cur.iter().flatten() {
             finite = V::and(finite, simd::finite(*c));
         }
+        // As `integrate`: no light and no moments from a sample that is not finite.
+        for c in cur.iter_mut().flatten() {
+            *c = V::select(finite, *c, zero);
+        }
         let lum = [luminance_lanes(cur[0]), luminance_lanes(cur[1])];
         let now = [lum[0], lum[0] * lum[0], lum[1], lum[1] * lum[1]];
 
@@ -861,7 +897,7 @@ impl Groups for Temporal<'_, '_> {
         for ((light, old), cur) in light.iter_mut().zip(&old).zip(&cur).take(signals) {
             for ((light, &old), &cur) in light.iter_mut().zip(old).zip(cur) {
                 let blend = old * inv * (one - alpha) + cur * alpha;
-                *light = V::select(blends, blend, V::select(finite, cur, zero));
+                *light = V::select(blends, blend, cur);
             }
         }
         let mut m = [zero; 4];
