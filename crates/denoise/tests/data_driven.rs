@@ -90,6 +90,19 @@ fn data_driven() -> FilterConfig {
     }
 }
 
+/// The filter as pathlight configures it by default (colour differences in the light's
+/// standard errors), and [`data_driven`]: the known-answer tests whose answer holds whatever
+/// the colour test's weights run both.
+fn both() -> [FilterConfig; 2] {
+    [
+        FilterConfig {
+            method: Method::DataDriven,
+            ..FilterConfig::default()
+        },
+        data_driven(),
+    ]
+}
+
 /// pathlight's generator, with normal deviates (Box-Muller).
 struct Rng(pathlight_core::rng::Rng);
 
@@ -426,12 +439,11 @@ fn a_constant_image_stays_constant() {
     let (d, i) = (Vec3::new(0.3, 0.5, 0.7), Vec3::new(0.05, 0.1, 0.02));
     let f = Frame::flat(50, 30, d, i);
     for holes in [false, true] {
-        let out = f.filter(&FilterConfig {
-            holes,
-            ..data_driven()
-        });
-        for o in out {
-            assert!((o - (d + i)).abs().max_element() < 1e-5, "{o}");
+        for config in both() {
+            let out = f.filter(&FilterConfig { holes, ..config });
+            for o in out {
+                assert!((o - (d + i)).abs().max_element() < 1e-5, "{o}");
+            }
         }
     }
 }
@@ -498,15 +510,18 @@ fn a_feature_edge_is_not_blurred_across() {
             f.direct[y * 40 + x] = Vec3::splat(0.9);
         }
     }
-    let out = f.filter(&data_driven());
-    for y in 0..20 {
-        for x in 0..40 {
-            let want = if x < 20 { 0.2 } else { 0.9 };
-            let got = out[y * 40 + x];
-            assert!(
-                (got - Vec3::splat(want)).abs().max_element() < 1e-4,
-                "({x},{y}) {got}"
-            );
+    for config in both() {
+        let out = f.filter(&config);
+        for y in 0..20 {
+            for x in 0..40 {
+                let want = if x < 20 { 0.2 } else { 0.9 };
+                let got = out[y * 40 + x];
+                assert!(
+                    (got - Vec3::splat(want)).abs().max_element() < 1e-4,
+                    "({x},{y}) {got} ({:?} units)",
+                    config.colour_units
+                );
+            }
         }
     }
     // The same light edge without a feature edge is blurred: the features are what keeps it.
@@ -637,20 +652,23 @@ fn sky_pixels_pass_through_and_light_nobody() {
             f.indirect[i] = Vec3::ZERO;
         }
     }
-    let out = f.filter(&data_driven());
-    for y in 0..20 {
-        for x in 0..30 {
-            let i = y * 30 + x;
-            let want = if x < 10 {
-                f.direct[i]
-            } else {
-                Vec3::splat(0.4)
-            };
-            assert!(
-                (out[i] - want).abs().max_element() < 1e-5,
-                "({x},{y}) {}",
-                out[i]
-            );
+    for config in both() {
+        let out = f.filter(&config);
+        for y in 0..20 {
+            for x in 0..30 {
+                let i = y * 30 + x;
+                let want = if x < 10 {
+                    f.direct[i]
+                } else {
+                    Vec3::splat(0.4)
+                };
+                assert!(
+                    (out[i] - want).abs().max_element() < 1e-5,
+                    "({x},{y}) {} ({:?} units)",
+                    out[i],
+                    config.colour_units
+                );
+            }
         }
     }
 }
@@ -665,15 +683,19 @@ fn a_nan_or_infinite_sample_stays_in_its_pixel() {
         f.roughness[7 * 30 + 3] = bad;
         f.metallic[7 * 30 + 3] = 1.0;
         f.metallic[8 * 30 + 9] = bad;
-        let out = f.filter(&data_driven());
-        for (i, o) in out.iter().enumerate() {
-            if i == 10 * 30 + 15 {
-                continue;
+        f.light_variance[4 * 30 + 25][0] = bad;
+        for config in both() {
+            let out = f.filter(&config);
+            for (i, o) in out.iter().enumerate() {
+                if i == 10 * 30 + 15 {
+                    continue;
+                }
+                assert!(
+                    (*o - Vec3::splat(0.4)).abs().max_element() < 1e-5,
+                    "{bad}: pixel {i} {o} ({:?} units)",
+                    config.colour_units
+                );
             }
-            assert!(
-                (*o - Vec3::splat(0.4)).abs().max_element() < 1e-5,
-                "{bad}: pixel {i} {o}"
-            );
         }
     }
 }

@@ -45,7 +45,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("R", "restart accumulation"),
     (
         "G",
-        "reconstruction filter (seed 001, data-driven) on or off",
+        "reconstruction filter (seed 001): none, data-driven, SVGF in turn",
     ),
     ("P", "save the shown frame as a PNG in the current folder"),
     ("Esc", "quit"),
@@ -245,7 +245,8 @@ impl Viewer {
                     let f = &mut self.config.frame.filter;
                     f.method = match f.method {
                         Method::None => Method::DataDriven,
-                        _ => Method::None,
+                        Method::DataDriven => Method::Svgf,
+                        Method::Svgf | Method::Rpf => Method::None,
                     };
                 }
                 Key::P => self.save_screenshot(),
