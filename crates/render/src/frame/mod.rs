@@ -652,6 +652,12 @@ impl Pipeline {
         if method.in_frame() {
             let t = Instant::now();
             let svgf = method == pathlight_denoise::Method::Svgf;
+            let data_driven = method == pathlight_denoise::Method::DataDriven;
+            // An epoch's first frame waits to be gathered until a second one comes (a camera
+            // that moves at every frame never gathers): SVGF does not read the statistics,
+            // and the data-driven filter reads that frame's features from the frame itself.
+            let waits = traced && self.frames == 1 && uniform;
+            let mut gathered = true;
             if traced && filter.gathers_features() {
                 // The epoch's first frame, if it waited, before this one (the statistics
                 // are then those of gathering every frame, bit for bit).
@@ -660,8 +666,9 @@ impl Pipeline {
                     self.filter
                         .gather(self.epoch, &spare.gbuffer, &spare.lighting);
                 }
-                if svgf && self.frames == 1 && uniform {
+                if waits {
                     self.deferred = Some(self.epoch);
+                    gathered = false;
                 } else {
                     self.filter
                         .gather(self.epoch, &self.gbuffer, &self.lighting);
@@ -669,7 +676,6 @@ impl Pipeline {
             }
             // With `refresh_growth`, a still view's data-driven image stays as it was until
             // the frames have grown by that factor.
-            let data_driven = method == pathlight_denoise::Method::DataDriven;
             let stays = data_driven
                 && !self.filter.image.is_empty()
                 && self.filtered.as_ref().is_some_and(|f| {
@@ -687,8 +693,14 @@ impl Pipeline {
                     frames: self.frames,
                     config: filter.clone(),
                 });
-                self.filter
-                    .run(method, filter, &self.history, &self.gbuffer, &self.lighting)
+                self.filter.run(
+                    method,
+                    filter,
+                    &self.history,
+                    &self.gbuffer,
+                    &self.lighting,
+                    gathered,
+                )
             });
             if let Some(Err(_)) = run {
                 // Not reached: the configuration was validated and the buffers are the
