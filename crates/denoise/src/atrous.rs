@@ -41,6 +41,16 @@ use crate::simd::{dispatch, exp2_neg_in_range, iota, store_first, F32xN, Isa, Ke
 /// with the 3x3 one (seven).
 pub const MAX_PAD: usize = 64;
 
+/// How far the a-trous kernel `kernel` pixels wide (3, else 5) reaches from its centre, in
+/// holes: 1 or 2.
+pub fn radius(kernel: u32) -> usize {
+    if kernel == 3 {
+        1
+    } else {
+        2
+    }
+}
+
 /// The 1D weights at offsets 0, 1, 2 of the a-trous kernel `kernel` pixels wide: the B3
 /// spline of the paper (5), or the linear B-spline `1/4, 1/2, 1/4` (3: a third of the taps, as
 /// several real-time implementations use; not in the paper).
@@ -421,8 +431,8 @@ impl Planes {
     /// (the variance and the luminance that a next pass would test are left as they were).
     pub fn pass(&mut self, kernel: u32, step: usize, sigma_l: f32, sigma_z: f32, last: bool) {
         let g = self.moving;
-        let r: i64 = if kernel == 3 { 1 } else { 2 };
-        let reach = r as usize * step;
+        let reach = radius(kernel) * step;
+        let r = radius(kernel) as i64;
         // What makes the passes' unchecked loads (`Pass::lanes`) safe: every tap of the
         // kernel with holes of `step` (and the variance blur's) lies within the padding.
         assert!(

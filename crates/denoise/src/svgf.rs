@@ -72,8 +72,8 @@ use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
 use crate::atrous::{
-    flush_variance, flush_variance_lanes, normal_weight, normal_weight_lanes, spline, LightRow,
-    LightView, Planes, StaticRow, StaticsView, BLUR, MAX_PAD, MIN_WEIGHT,
+    flush_variance, flush_variance_lanes, normal_weight, normal_weight_lanes, radius, spline,
+    LightRow, LightView, Planes, StaticRow, StaticsView, BLUR, MAX_PAD, MIN_WEIGHT,
 };
 use crate::exp::exp_neg;
 use crate::features::{demodulator, demodulator_lanes};
@@ -288,7 +288,7 @@ impl Svgf {
         }
         self.next.fit(f.width, f.height);
         // The padding the passes' taps reach into: the kernel's radius times the widest holes.
-        let pad = (if kernel == 3 { 1usize } else { 2 }) << iterations.saturating_sub(1);
+        let pad = radius(kernel) << iterations.saturating_sub(1);
         let previous = &self.state;
         // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
         if pad <= MAX_PAD && !self.scalar && n < 1 << 24 {
@@ -453,7 +453,7 @@ impl Svgf {
     /// first `signals` signals, into `next_light` and `next_variance`.
     fn atrous(&mut self, f: &SvgfFrame, kernel: u32, step: i64, signals: usize) {
         let weights = spline(kernel);
-        let r = i64::from(kernel / 2);
+        let r = radius(kernel) as i64;
         let n = f.width * f.height;
         self.next_light.resize(n, [Vec3::ZERO; 2]);
         self.next_variance.resize(n, [0.0; 2]);

@@ -333,7 +333,9 @@ impl Filter {
         self.texture2.resize(n, Vec3::ZERO);
         self.variance.resize(n, [0.0; 5]);
         self.light_variance.resize(n, [0.0; 2]);
-        self.stats.resize(n, FeatureStats::default());
+        if first.is_none() {
+            self.stats.resize(n, FeatureStats::default());
+        }
         self.roughness.resize(n, 0.0);
         self.metallic.resize(n, 0.0);
         self.coverage.resize(n, (1.0, Vec3::ZERO));

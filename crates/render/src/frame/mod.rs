@@ -656,8 +656,7 @@ impl Pipeline {
             // An epoch's first frame waits to be gathered until a second one comes (a camera
             // that moves at every frame never gathers): SVGF does not read the statistics,
             // and the data-driven filter reads that frame's features from the frame itself.
-            let waits = traced && self.frames == 1 && uniform;
-            let mut gathered = true;
+            let waits = traced && filter.gathers_features() && self.frames == 1 && uniform;
             if traced && filter.gathers_features() {
                 // The epoch's first frame, if it waited, before this one (the statistics
                 // are then those of gathering every frame, bit for bit).
@@ -668,7 +667,6 @@ impl Pipeline {
                 }
                 if waits {
                     self.deferred = Some(self.epoch);
-                    gathered = false;
                 } else {
                     self.filter
                         .gather(self.epoch, &self.gbuffer, &self.lighting);
@@ -699,7 +697,7 @@ impl Pipeline {
                     &self.history,
                     &self.gbuffer,
                     &self.lighting,
-                    gathered,
+                    !waits,
                 )
             });
             if let Some(Err(_)) = run {
