@@ -1,0 +1,420 @@
+//! Frames that cannot change while the frame pipeline is restructured: a matrix of
+//! configurations (each technique alone, the real-time preset as it stood, reprojection with
+//! adaptive sampling, ReSTIR with SVGF, ...), on the built-in Cornell box and a textured glTF
+//! scene, with a still camera and a moving one, rendered on 1 and 2 threads. Every frame's
+//! image, history and report, and at the end every display mode, are hashed, and the hashes
+//! must equal those recorded in `tests/data/frame-hashes.txt`.
+//!
+//! The recorded hashes are bit-exact results of floating-point code whose instruction set is
+//! chosen at run time (AVX-512, AVX2 and FMA paths in the filters and in ReSTIR), so they are
+//! kept per instruction-set fingerprint. On a processor whose fingerprint has no record the
+//! test still checks that 1 and 2 threads agree, and says that it could not compare.
+//! `PATHLIGHT_BLESS=1 cargo test -p pathlight-render --test frame_hashes` records the hashes
+//! of this processor's fingerprint (only for a change meant to alter frames: say so in its
+//! commit).
+//!
+//! The configurations are spelled out here rather than read from `experiments/` or the
+//! defaults, so that a later change of a preset or of a default does not move these hashes.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use common::{cornell, in_pool, quad};
+use glam::{Mat4, Vec3};
+use pathlight_render::camera_path::{CameraPath, PathKind};
+use pathlight_render::config::CameraConfig;
+use pathlight_render::frame::{FrameReport, Pipeline};
+use pathlight_render::{Config, World};
+use pathlight_scene::{Environment, Instance, Material};
+
+/// The display modes hashed at the end of each sequence, by name.
+const MODES: [&str; 27] = [
+    "final",
+    "accumulated",
+    "noisy",
+    "direct",
+    "indirect",
+    "variance",
+    "samples",
+    "albedo",
+    "normal",
+    "depth",
+    "motion",
+    "roughness",
+    "metallic",
+    "bounce-albedo",
+    "bounce-direction",
+    "probability",
+    "reprojected",
+    "rejection",
+    "frame-direct",
+    "reservoir-m",
+    "reservoir-weight",
+    "variance-depth",
+    "variance-normal",
+    "variance-texture",
+    "variance-direction",
+    "variance-texture2",
+    "sure-share",
+];
+
+/// The configurations, as TOML over [`Config::realtime`] at the test's size.
+const CASES: [(&str, &str); 12] = [
+    ("plain", ""),
+    ("plain-no-accumulate", "[frame]\naccumulate = false\n"),
+    ("two-spp", "spp = 2\n"),
+    (
+        "adaptive",
+        "[frame.adaptive]\nenabled = true\nmin_spp = 2\nmax_spp = 8\nmeasure = \"luminance\"\n\
+         budget = false\nskip_empty = true\n",
+    ),
+    (
+        "adaptive-error-budget",
+        "[frame.adaptive]\nenabled = true\nmin_spp = 2\nmax_spp = 8\nmeasure = \"error\"\n\
+         budget = true\n",
+    ),
+    ("reprojection", "[frame.reprojection]\nenabled = true\n"),
+    (
+        "reprojection-4-fresh",
+        "[frame.reprojection]\nenabled = true\nsamples = 4\nfresh_spp = 4\n",
+    ),
+    (
+        "reprojection-adaptive",
+        "[frame.reprojection]\nenabled = true\n[frame.adaptive]\nenabled = true\nmin_spp = 2\n\
+         max_spp = 8\nmeasure = \"error\"\nbudget = true\ncap = true\n",
+    ),
+    ("restir", "[frame.restir]\nenabled = true\n"),
+    (
+        "data-driven",
+        "[frame.filter]\nmethod = \"data-driven\"\nkernel = 7\nholes = true\nsure = true\n",
+    ),
+    (
+        "restir-svgf",
+        "[frame.restir]\nenabled = true\n[frame.filter]\nmethod = \"svgf\"\n",
+    ),
+    // `experiments/realtime.toml`'s settings when this test was written.
+    (
+        "preset",
+        "[frame]\naccumulate = true\n[frame.filter]\nmethod = \"svgf\"\natrous_kernel = 3\n\
+         svgf_taa = true\nsvgf_converge = true\nsvgf_still_handover = 4\nholes = true\n\
+         sure = true\nrefresh_growth = 1.25\n",
+    ),
+];
+
+const WIDTH: u32 = 40;
+const HEIGHT: u32 = 24;
+/// Frames of the still camera (past the preset's handover and a refresh).
+const STILL_FRAMES: u32 = 9;
+/// Views of the moving camera (one frame each).
+const MOVING_VIEWS: u32 = 5;
+
+/// The case's configuration.
+fn config(toml: &str) -> Config {
+    let base = Config {
+        width: WIDTH,
+        height: HEIGHT,
+        seed: 11,
+        ..Config::realtime()
+    };
+    let c = base.with_toml(toml).unwrap();
+    c.validate().unwrap();
+    c
+}
+
+/// BoxTextured (its base colour a texture) on a floor, under a dim constant sky and a dozen
+/// random point lights.
+fn textured() -> World {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/box-textured");
+    let mut scene =
+        pathlight_scene::load_file(&dir.join("BoxTextured.gltf"), &Default::default()).unwrap();
+    let floor_material = scene.materials.len() as u32;
+    scene
+        .materials
+        .push(Material::lambertian("floor", Vec3::new(0.6, 0.55, 0.5)));
+    scene.meshes.push(quad(floor_material, 3.0, 0.0));
+    scene.instances.push(Instance {
+        mesh: scene.meshes.len() as u32 - 1,
+        transform: Mat4::from_translation(Vec3::new(0.0, -0.5, 0.0))
+            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
+        name: "floor".into(),
+    });
+    scene.environment = Some(Environment::constant(Vec3::new(0.2, 0.25, 0.3)));
+    scene.add_random_point_lights(12, 5);
+    scene.collect_emissive_triangles();
+    World::new(scene, Default::default())
+}
+
+/// The textured scene's first view.
+fn textured_view() -> CameraConfig {
+    CameraConfig {
+        look_from: Some([1.6, 1.1, 2.4]),
+        look_at: Some([0.0, -0.1, 0.0]),
+        fov_y: Some(45.0),
+        ..CameraConfig::default()
+    }
+}
+
+/// 64-bit FNV-1a, written out so that the hashes do not depend on a library's choice.
+#[derive(Clone, Copy)]
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn bytes(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    fn f32(&mut self, v: f32) {
+        self.bytes(&v.to_bits().to_le_bytes());
+    }
+
+    fn vec3(&mut self, v: Vec3) {
+        v.to_array().into_iter().for_each(|c| self.f32(c));
+    }
+
+    fn u64(&mut self, v: u64) {
+        self.bytes(&v.to_le_bytes());
+    }
+}
+
+/// A frame's hash: its final image (linear), the history's statistics, the displayed bytes
+/// and the deterministic parts of its report.
+fn frame_hash(pipeline: &Pipeline, report: &FrameReport) -> u64 {
+    let mut h = Fnv::new();
+    for v in pipeline.image() {
+        h.vec3(v);
+    }
+    for s in &pipeline.history {
+        h.u64(s.n as u64);
+        h.vec3(s.direct.mean);
+        h.vec3(s.indirect.mean);
+        h.vec3(s.direct.m2);
+        h.vec3(s.indirect.m2);
+    }
+    h.bytes(&pipeline.rgba);
+    for v in [
+        report.frame,
+        report.epoch,
+        report.accumulated as u64,
+        report.spp as u64,
+        report.samples,
+        report.traced as u64,
+        report.rays,
+        report.tau.map_or(u64::MAX, |t| t.to_bits() as u64),
+        report.probability_above_one.unwrap_or(u64::MAX),
+    ] {
+        h.u64(v);
+    }
+    h.0
+}
+
+/// The hashes of one case on one scene and camera: one per frame, then one per display mode
+/// at the last frame.
+fn sequence(world: &World, base: &Config, views: &[CameraConfig], frames: u32) -> Vec<u64> {
+    let at = |view: &CameraConfig| Config {
+        camera: view.clone(),
+        ..base.clone()
+    };
+    let mut pipeline = Pipeline::new(at(&views[0]));
+    let mut hashes = Vec::new();
+    let mut report = None;
+    for f in 0..frames {
+        let view = &views[(f as usize).min(views.len() - 1)];
+        pipeline.set_config(&at(view));
+        let mut r = pipeline.render_frame(world);
+        pipeline.display(&mut r);
+        hashes.push(frame_hash(&pipeline, &r));
+        report = Some(r);
+    }
+    // The display settings change no frame: each mode of the last one.
+    let (last, mut report) = (at(&views[views.len() - 1]), report.unwrap());
+    for name in MODES {
+        let mut c = last.clone();
+        c.display.mode = name.parse().unwrap();
+        pipeline.set_config(&c);
+        pipeline.display(&mut report);
+        let mut h = Fnv::new();
+        h.bytes(&pipeline.rgba);
+        for v in pipeline.sources().linear(c.display.mode) {
+            h.vec3(v);
+        }
+        hashes.push(h.0);
+    }
+    hashes
+}
+
+/// Every (case, scene, camera) with its hashes, rendered on `threads` threads.
+fn matrix(threads: usize) -> BTreeMap<String, Vec<u64>> {
+    let scenes: [(&str, World, CameraConfig); 2] = [
+        ("cornell", cornell(), CameraConfig::default()),
+        ("textured", textured(), textured_view()),
+    ];
+    let mut out = BTreeMap::new();
+    in_pool(threads, || {
+        for (scene, world, first) in &scenes {
+            let orbit = world.path_views(&CameraPath {
+                path: PathKind::Orbit,
+                degrees: 12.0,
+                steps: MOVING_VIEWS - 1,
+                look_from: first.look_from,
+                look_at: first.look_at,
+                fov_y: first.fov_y,
+                ..CameraPath::default()
+            });
+            let still = vec![orbit[0].clone()];
+            for (case, toml) in CASES {
+                let base = config(toml);
+                for (camera, views, frames) in [
+                    ("still", &still, STILL_FRAMES),
+                    ("moving", &orbit, MOVING_VIEWS),
+                ] {
+                    let key = format!("{case} {scene} {camera}");
+                    out.insert(key, sequence(world, &base, views, frames));
+                }
+            }
+        }
+    });
+    out
+}
+
+/// The instruction sets the frames' floating-point code may choose at run time.
+fn fingerprint() -> String {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let mut parts = vec!["x86_64"];
+        if std::arch::is_x86_feature_detected!("avx2") {
+            parts.push("avx2");
+        }
+        if std::arch::is_x86_feature_detected!("fma") {
+            parts.push("fma");
+        }
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            parts.push("avx512f");
+        }
+        parts.join("+")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        std::env::consts::ARCH.to_owned()
+    }
+}
+
+fn record_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/frame-hashes.txt")
+}
+
+/// The recorded hashes: `fingerprint`, then `case scene camera: hash hash ...` lines per key.
+fn read_records() -> BTreeMap<String, BTreeMap<String, Vec<u64>>> {
+    let mut records: BTreeMap<String, BTreeMap<String, Vec<u64>>> = BTreeMap::new();
+    let Ok(text) = std::fs::read_to_string(record_path()) else {
+        return records;
+    };
+    let mut current = None;
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
+        if let Some(fp) = line.strip_prefix("[").and_then(|l| l.strip_suffix("]")) {
+            current = Some(fp.to_owned());
+            continue;
+        }
+        let (key, hashes) = line.split_once(':').expect("a `key: hashes` line");
+        let hashes = hashes
+            .split_whitespace()
+            .map(|h| u64::from_str_radix(h, 16).expect("a hex hash"))
+            .collect();
+        let fp = current.clone().expect("a [fingerprint] line first");
+        records
+            .entry(fp)
+            .or_default()
+            .insert(key.to_owned(), hashes);
+    }
+    records
+}
+
+fn write_records(records: &BTreeMap<String, BTreeMap<String, Vec<u64>>>) {
+    let mut text = String::from(
+        "# Frame hashes of tests/frame_hashes.rs, per instruction-set fingerprint.\n\
+         # Written by `PATHLIGHT_BLESS=1 cargo test -p pathlight-render --test frame_hashes`.\n",
+    );
+    for (fp, keys) in records {
+        text.push_str(&format!("[{fp}]\n"));
+        for (key, hashes) in keys {
+            let hex: Vec<String> = hashes.iter().map(|h| format!("{h:016x}")).collect();
+            text.push_str(&format!("{key}: {}\n", hex.join(" ")));
+        }
+    }
+    let path = record_path();
+    let tmp = path.with_extension("txt.tmp");
+    std::fs::write(&tmp, text).unwrap();
+    std::fs::rename(tmp, path).unwrap();
+}
+
+#[test]
+fn frames_keep_their_recorded_hashes_on_one_and_two_threads() {
+    let one = matrix(1);
+    let two = matrix(2);
+    for (key, hashes) in &one {
+        assert_eq!(hashes, &two[key], "{key}: 1 and 2 threads differ");
+    }
+    // A case whose switches changed nothing would repeat the plain pipeline's frames. Some
+    // do by design: without accumulation a moving camera's frames (a new epoch at every
+    // move either way), reprojection with a still camera (nothing to carry).
+    let same_as_plain: Vec<String> = one
+        .iter()
+        .filter(|(k, v)| {
+            let (case, rest) = k.split_once(' ').unwrap();
+            case != "plain" && one[&format!("plain {rest}")] == **v
+        })
+        .map(|(k, _)| k.clone())
+        .collect();
+    assert_eq!(
+        same_as_plain,
+        [
+            "plain-no-accumulate cornell moving",
+            "plain-no-accumulate textured moving",
+            "reprojection cornell still",
+            "reprojection textured still",
+        ]
+    );
+    let fp = fingerprint();
+    let mut records = read_records();
+    if std::env::var_os("PATHLIGHT_BLESS").is_some() {
+        records.insert(fp, one);
+        write_records(&records);
+        return;
+    }
+    let Some(recorded) = records.get(&fp) else {
+        eprintln!(
+            "note: no frame hashes recorded for this processor ({fp}); 1 and 2 threads agree, \
+             the recorded frames were not compared"
+        );
+        return;
+    };
+    let mut differ = Vec::new();
+    for (key, hashes) in &one {
+        match recorded.get(key) {
+            Some(r) if r == hashes => {}
+            Some(r) => {
+                let frames = r.len().min(hashes.len());
+                let first = (0..frames).find(|&i| r[i] != hashes[i]);
+                differ.push(format!("{key} (first at entry {first:?})"));
+            }
+            None => differ.push(format!("{key} (not recorded)")),
+        }
+    }
+    assert!(
+        differ.is_empty(),
+        "frames changed ({} of {}):\n{}",
+        differ.len(),
+        one.len(),
+        differ.join("\n")
+    );
+}
