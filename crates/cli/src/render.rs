@@ -165,7 +165,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let config = args.config(aspect)?;
     let world = World::new(scene, config.light_selection);
     let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-    let camera = world.camera(&config);
+    let camera = config.render_camera(&world);
     if config.frame.filter.method == Method::Rpf {
         return render_rpf(args, &world, &camera, &config, setup_ms);
     }

@@ -405,7 +405,7 @@ impl ViewRun<'_> {
                 spp,
                 ..config.clone()
             };
-            let camera = self.world.camera(&config);
+            let camera = config.render_camera(self.world);
             let task = format!("{}, {spp} spp", self.task);
             let progress = |f: f32| {
                 (self.runner.progress)(&Progress {

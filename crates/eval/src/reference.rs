@@ -181,7 +181,7 @@ impl ReferenceCache {
             }
             _ => Film::new(config.width, config.height),
         };
-        let camera = world.camera(config);
+        let camera = config.render_camera(world);
         let total = config.width as u64 * config.height as u64 * config.spp as u64;
         let done = std::sync::atomic::AtomicU64::new(film.samples());
         progress(film.samples(), total);

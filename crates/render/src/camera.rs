@@ -4,6 +4,43 @@
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use pathlight_accel::Ray;
 use pathlight_scene::{Camera as SceneCamera, Projection};
+use serde::{Deserialize, Serialize};
+
+/// The camera: the scene's first camera (or a view of the whole scene) unless overridden.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraConfig {
+    pub look_from: Option<[f32; 3]>,
+    pub look_at: Option<[f32; 3]>,
+    pub up: Option<[f32; 3]>,
+    /// Vertical field of view in degrees.
+    pub fov_y: Option<f32>,
+    /// Thin-lens radius in scene units; 0 is a pinhole.
+    pub lens_radius: f32,
+    /// Distance in focus; `None` focuses on what the image centre sees.
+    pub focus_distance: Option<f32>,
+}
+
+impl CameraConfig {
+    /// The scene camera with this configuration's overrides applied to `base`.
+    pub fn apply(&self, base: &SceneCamera) -> SceneCamera {
+        if self.look_from.is_none()
+            && self.look_at.is_none()
+            && self.up.is_none()
+            && self.fov_y.is_none()
+        {
+            return base.clone();
+        }
+        let from = self.look_from.map_or(base.position(), Vec3::from);
+        let at = self.look_at.map_or(from + base.forward(), Vec3::from);
+        let up = self.up.map_or(base.transform.y_axis.truncate(), Vec3::from);
+        let fov = self.fov_y.unwrap_or(match base.projection {
+            Projection::Perspective { yfov, .. } => yfov.to_degrees(),
+            _ => 45.0,
+        });
+        SceneCamera::look_at(&base.name, from, at, up, fov)
+    }
+}
 
 /// How the camera projects.
 #[derive(Debug, Clone, Copy, PartialEq)]

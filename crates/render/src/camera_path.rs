@@ -8,7 +8,7 @@ use glam::{Quat, Vec3};
 use pathlight_scene::{Camera as SceneCamera, Projection};
 use serde::{Deserialize, Serialize};
 
-use crate::config::CameraConfig;
+use crate::camera::CameraConfig;
 
 /// Most views a path may produce (a typo must not ask for years of frames).
 pub const MAX_VIEWS: usize = 100_000;

@@ -2,17 +2,22 @@
 //! the viewer, the player, the benchmarks and the experiments). Serialisable, so experiments and
 //! checkpoints can store it.
 
-use glam::Vec3;
-use pathlight_scene::Camera as SceneCamera;
 use serde::{Deserialize, Serialize};
 
 use crate::bsdf::Microfacet;
+use crate::camera::Camera;
 use crate::frame::adaptive::AdaptiveConfig;
 use crate::frame::reprojection::ReprojectionConfig;
 use crate::frame::restir::RestirConfig;
 use crate::light::LightSelection;
+use crate::path::PathSettings;
 use crate::sampler::SamplerKind;
+use crate::world::World;
 use pathlight_denoise::{FilterConfig, FilterError};
+
+pub use crate::camera::CameraConfig;
+pub use crate::error::ConfigError;
+pub use crate::path::MAX_PATH_VERTICES;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -112,46 +117,6 @@ pub const MAX_SIDE: u32 = 16384;
 /// Largest sample count accepted.
 pub const MAX_SPP: u32 = 1 << 24;
 
-/// A configuration value out of range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field} {value}: must be {requirement}")]
-pub struct ConfigError {
-    /// The field's name as in the configuration (`fov_y`, `camera.lens_radius` is `lens_radius`).
-    pub field: &'static str,
-    pub value: String,
-    pub requirement: String,
-}
-
-impl ConfigError {
-    /// The field's name as a command-line option (`fov_y` is `--fov-y`); a technique's
-    /// field, which has no flag of its own, by its place in the configuration file
-    /// (`frame.adaptive.min_spp`).
-    pub fn option(&self) -> String {
-        if self.field.contains('.') {
-            self.field.to_owned()
-        } else {
-            format!("--{}", self.field.replace('_', "-"))
-        }
-    }
-
-    /// A value out of range.
-    pub fn new(
-        field: &'static str,
-        value: impl std::fmt::Display,
-        requirement: impl Into<String>,
-    ) -> Self {
-        Self {
-            field,
-            value: value.to_string(),
-            requirement: requirement.into(),
-        }
-    }
-}
-
-/// Safety stop for paths of unlimited depth (reached only by pathological scenes, e.g. a
-/// white furnace inside a perfect mirror).
-pub const MAX_PATH_VERTICES: u32 = 1024;
-
 impl Default for Config {
     fn default() -> Self {
         Self {
@@ -172,6 +137,23 @@ impl Default for Config {
 }
 
 impl Config {
+    /// What the path tracer reads of this configuration.
+    pub fn path_settings(&self) -> PathSettings {
+        PathSettings {
+            seed: self.seed,
+            sampler: self.sampler,
+            max_bounces: self.max_bounces,
+            rr_start: self.rr_start,
+            microfacet: self.microfacet,
+        }
+    }
+
+    /// The render camera of this configuration's view and image size in `world`
+    /// ([`World::camera`]).
+    pub fn render_camera(&self, world: &World) -> Camera {
+        world.camera(&self.camera, self.width, self.height)
+    }
+
     /// The default real-time configuration (`view`, `play`, `bench frame`): one sample per
     /// pixel per frame and two scattering events per path (next event estimation at both, so
     /// direct light and one bounce of indirect light), accumulated while the camera is still.
@@ -289,42 +271,6 @@ impl Config {
             ));
         }
         Ok(())
-    }
-}
-
-/// The camera: the scene's first camera (or a view of the whole scene) unless overridden.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct CameraConfig {
-    pub look_from: Option<[f32; 3]>,
-    pub look_at: Option<[f32; 3]>,
-    pub up: Option<[f32; 3]>,
-    /// Vertical field of view in degrees.
-    pub fov_y: Option<f32>,
-    /// Thin-lens radius in scene units; 0 is a pinhole.
-    pub lens_radius: f32,
-    /// Distance in focus; `None` focuses on what the image centre sees.
-    pub focus_distance: Option<f32>,
-}
-
-impl CameraConfig {
-    /// The scene camera with this configuration's overrides applied to `base`.
-    pub fn apply(&self, base: &SceneCamera) -> SceneCamera {
-        if self.look_from.is_none()
-            && self.look_at.is_none()
-            && self.up.is_none()
-            && self.fov_y.is_none()
-        {
-            return base.clone();
-        }
-        let from = self.look_from.map_or(base.position(), Vec3::from);
-        let at = self.look_at.map_or(from + base.forward(), Vec3::from);
-        let up = self.up.map_or(base.transform.y_axis.truncate(), Vec3::from);
-        let fov = self.fov_y.unwrap_or(match base.projection {
-            pathlight_scene::Projection::Perspective { yfov, .. } => yfov.to_degrees(),
-            _ => 45.0,
-        });
-        SceneCamera::look_at(&base.name, from, at, up, fov)
     }
 }
 

@@ -9,6 +9,7 @@ pub mod camera_path;
 pub mod checkpoint;
 pub mod config;
 pub mod distribution;
+pub mod error;
 pub mod film;
 pub mod frame;
 pub mod light;

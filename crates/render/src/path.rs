@@ -10,9 +10,10 @@ use glam::{Vec2, Vec3};
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::{hash, Rng};
 
+use crate::bsdf::Microfacet;
 use crate::camera::Camera;
-use crate::config::{Config, MAX_PATH_VERTICES};
 use crate::sampler::PixelSampler;
+use crate::sampler::SamplerKind;
 use crate::surface::{offset_origin, Shading, Surface};
 use crate::world::World;
 
@@ -75,7 +76,7 @@ impl Vertex {
     /// The vertex of `hit` on `ray`.
     #[inline(always)]
     pub fn new(world: &World, ray: &Ray, hit: Hit, microfacet: crate::bsdf::Microfacet) -> Self {
-        let (surface, shading) = Surface::shaded(world, ray, &hit, microfacet);
+        let (surface, shading) = world.shaded(ray, &hit, microfacet);
         Self {
             hit,
             surface,
@@ -101,11 +102,30 @@ impl PathSample {
     }
 }
 
-/// A path tracer over one world, camera and configuration.
+/// Safety stop for paths of unlimited depth (reached only by pathological scenes, e.g. a
+/// white furnace inside a perfect mirror).
+pub const MAX_PATH_VERTICES: u32 = 1024;
+
+/// What the path tracer reads of the configuration (`Config::path_settings`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathSettings {
+    /// Seeds every random decision of the image.
+    pub seed: u64,
+    /// Sample values: Owen-scrambled Sobol points or independent random numbers.
+    pub sampler: SamplerKind,
+    /// Maximum number of scattering events along a path; `None`: unlimited (Russian roulette
+    /// ends paths, with a hard stop at [`MAX_PATH_VERTICES`]).
+    pub max_bounces: Option<u32>,
+    /// First bounce at which Russian roulette may end a path.
+    pub rr_start: u32,
+    pub microfacet: Microfacet,
+}
+
+/// A path tracer over one world, camera and settings.
 pub struct PathTracer<'a> {
     pub world: &'a World,
     pub camera: &'a Camera,
-    pub config: &'a Config,
+    pub settings: PathSettings,
 }
 
 #[inline]
@@ -181,13 +201,16 @@ impl PathTracer<'_> {
     /// The sampler of sample `index` of pixel (`x`, `y`).
     #[inline]
     pub fn pixel_sampler(&self, x: u32, y: u32, index: u32) -> PixelSampler {
-        PixelSampler::with_kind(self.config.sampler, self.config.seed, x, y, index)
+        PixelSampler::with_kind(self.settings.sampler, self.settings.seed, x, y, index)
     }
 
     /// The random stream of sample `index` of pixel (`x`, `y`) (alpha cut-outs).
     #[inline]
     pub fn pixel_rng(&self, x: u32, y: u32, index: u32) -> Rng {
-        Rng::new(hash(&[self.config.seed, x as u64, y as u64]), index as u64)
+        Rng::new(
+            hash(&[self.settings.seed, x as u64, y as u64]),
+            index as u64,
+        )
     }
 
     /// The closest surface along `ray` that is not cut away, with its shading; counts the
@@ -213,7 +236,7 @@ impl PathTracer<'_> {
                 hit = world.accel.intersect(&ray);
             }
             *rays += 1;
-            let v = Vertex::new(world, &ray, hit?, self.config.microfacet);
+            let v = Vertex::new(world, &ray, hit?, self.settings.microfacet);
             let alpha = v.shading.alpha;
             if alpha >= 1.0 || (alpha > 0.0 && rng.next_f32() < alpha) {
                 return Some(v);
@@ -261,7 +284,7 @@ impl PathTracer<'_> {
             let Some(hit) = world.accel.intersect(&ray) else {
                 return tr;
             };
-            let (surface, shading) = Surface::shaded(world, &ray, &hit, self.config.microfacet);
+            let (surface, shading) = world.shaded(&ray, &hit, self.settings.microfacet);
             tr *= 1.0 - shading.alpha;
             if tr <= 0.0 {
                 return 0.0;
@@ -304,7 +327,7 @@ impl PathTracer<'_> {
     ) -> PathSample {
         let world = self.world;
         let lights = &world.lights;
-        let max_bounces = self.config.max_bounces.unwrap_or(u32::MAX);
+        let max_bounces = self.settings.max_bounces.unwrap_or(u32::MAX);
         let mut out = PathSample::default();
         let mut beta = Vec3::ONE;
         // Radiance scaling from refraction, undone for Russian roulette (pbrt-v4's etaScale).
@@ -482,7 +505,7 @@ impl PathTracer<'_> {
             ray = Ray::new(surface.spawn_origin(wi), wi);
             // Russian roulette.
             let u_rr = sampler.next_1d();
-            if bounce + 1 >= self.config.rr_start {
+            if bounce + 1 >= self.settings.rr_start {
                 let m = (beta * eta_scale).max_element();
                 if m < 1.0 {
                     let q = (1.0 - m).max(0.0);

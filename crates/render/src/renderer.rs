@@ -47,7 +47,7 @@ pub fn render_range_pass(
     let tracer = PathTracer {
         world,
         camera,
-        config,
+        settings: config.path_settings(),
     };
     let width = film.width as usize;
     film.pixels

@@ -65,7 +65,7 @@ pub fn trace(
     let tracer = PathTracer {
         world,
         camera,
-        config,
+        settings: config.path_settings(),
     };
     let bounds = world.scene.bounds();
     let far = if bounds.is_empty() {

@@ -1,12 +1,11 @@
 //! What a ray hit: position, normals, shading frame, texture coordinates and the material's
 //! values there (textures applied), ready for the BSDF.
 
-use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
+use glam::{Mat3, Vec2, Vec3, Vec4, Vec4Swizzles};
 use pathlight_accel::{Hit, Ray};
-use pathlight_scene::{AlphaMode, Material, TextureRef};
+use pathlight_scene::{AlphaMode, Material, Scene, TextureRef};
 
 use crate::bsdf::{BsdfParams, Microfacet};
-use crate::world::World;
 
 /// A shading point.
 #[derive(Debug, Clone, Copy)]
@@ -41,41 +40,24 @@ pub struct Shading {
 }
 
 impl Surface {
-    /// The shading point of `hit` on `ray`. Opaque and thin materials are shaded on the side the
-    /// ray came from (both faces look the same, as in Cycles); refracting volumes keep their
-    /// outward normal, so that `wo.z < 0` in the shading frame means "from inside".
-    pub fn new(world: &World, ray: &Ray, hit: &Hit) -> Self {
-        Self::with_texcoords(world, ray, hit).0
-    }
-
-    /// The shading point of `hit` on `ray` and the material's values there.
+    /// The shading point of `hit` on `ray` in `scene` (`World::surface`), with the texture
+    /// coordinates and the vertex colour (linear RGBA, white without one) there. Opaque and
+    /// thin materials are shaded on the side the ray came from (both faces look the same, as
+    /// in Cycles); refracting volumes keep their outward normal, so that `wo.z < 0` in the
+    /// shading frame means "from inside". `nm` and `linear` are the hit instance's normal
+    /// matrix (inverse transpose) and linear part.
     #[inline(always)]
-    pub fn shaded(
-        world: &World,
+    pub fn at(
+        scene: &Scene,
+        nm: Mat3,
+        linear: Mat3,
         ray: &Ray,
         hit: &Hit,
-        distribution: Microfacet,
-    ) -> (Self, Shading) {
-        let (surface, uv, color) = Self::with_texcoords(world, ray, hit);
-        if color == Vec4::ONE {
-            if let Some(shading) = world.uniform_shading(surface.material, distribution) {
-                return (surface, shading);
-            }
-        }
-        let mat = &world.scene.materials[surface.material as usize];
-        (surface, shade_material(world, mat, uv, color, distribution))
-    }
-
-    /// [`new`](Self::new), with the texture coordinates and the vertex colour (linear RGBA,
-    /// white without one) at the hit.
-    #[inline(always)]
-    fn with_texcoords(world: &World, ray: &Ray, hit: &Hit) -> (Self, [Vec2; 2], Vec4) {
-        let scene = &world.scene;
+    ) -> (Self, [Vec2; 2], Vec4) {
         let inst = &scene.instances[hit.instance as usize];
         let mesh = &scene.meshes[inst.mesh as usize];
         let idx = mesh.indices[hit.triangle as usize];
         let [a, b, c] = idx.map(|i| mesh.positions[i as usize]);
-        let nm = world.normal_matrices[hit.instance as usize];
         let (u, v) = (hit.u, hit.v);
         let w = 1.0 - u - v;
         let p_obj = a * w + b * u + c * v;
@@ -101,7 +83,7 @@ impl Surface {
         // the final normal does.
         let mut tangent = mesh.tangents.as_ref().and_then(|ts| {
             let t4 = ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
-            let t = world.linear[hit.instance as usize] * t4.xyz();
+            let t = linear * t4.xyz();
             let t = (t - ns * ns.dot(t)).normalize_or_zero();
             (t != Vec3::ZERO).then_some(t)
         });
@@ -120,7 +102,7 @@ impl Surface {
                 }
                 _ => frame(ns),
             };
-            let n = sample(world, tex, uv).xyz() * 2.0 - Vec3::ONE;
+            let n = sample(scene, tex, uv).xyz() * 2.0 - Vec3::ONE;
             let n = Vec3::new(n.x * mat.normal_scale, n.y * mat.normal_scale, n.z);
             let mapped = (t * n.x + bt * n.y + ns * n.z).normalize_or(ns);
             // Keep the mapped normal on the geometric side (no light leaks through the
@@ -214,20 +196,20 @@ fn reframe(n: Vec3, t: Vec3) -> (Vec3, Vec3) {
 }
 
 #[inline]
-fn sample(world: &World, tex: &TextureRef, uv: [Vec2; 2]) -> Vec4 {
+fn sample(scene: &Scene, tex: &TextureRef, uv: [Vec2; 2]) -> Vec4 {
     let uv = uv[(tex.texcoord as usize).min(1)];
-    world.scene.textures[tex.texture as usize].sample(tex.apply(uv), &tex.sampler)
+    scene.textures[tex.texture as usize].sample(tex.apply(uv), &tex.sampler)
 }
 
 /// Evaluates `mat`'s parameters at texture coordinates `uv` with vertex colour `color`.
 pub fn shade_material(
-    world: &World,
+    scene: &Scene,
     mat: &Material,
     uv: [Vec2; 2],
     color: Vec4,
     distribution: Microfacet,
 ) -> Shading {
-    let tex = |t: &Option<TextureRef>| t.as_ref().map(|t| sample(world, t, uv));
+    let tex = |t: &Option<TextureRef>| t.as_ref().map(|t| sample(scene, t, uv));
     let mut base = mat.base_color * color;
     if let Some(c) = tex(&mat.base_color_texture) {
         base *= c;

@@ -6,8 +6,11 @@ use pathlight_accel::{build_accel, Accel};
 use pathlight_scene::{AlphaMode, Material, Scene};
 
 use crate::bsdf::{Bsdf, BsdfParams, Microfacet};
+use crate::camera::{Camera, CameraConfig};
+use crate::camera_path::CameraPath;
 use crate::light::{LightSelection, Lights};
-use crate::surface::{shade_material, Shading};
+use crate::surface::{shade_material, Shading, Surface};
+use pathlight_accel::{Hit, Ray};
 
 pub struct World {
     pub scene: Scene,
@@ -45,7 +48,7 @@ impl UniformMaterial {
             return None;
         }
         let shading = shade_material(
-            world_textures,
+            &world_textures.scene,
             mat,
             [Vec2::ZERO; 2],
             Vec4::ONE,
@@ -115,6 +118,40 @@ impl World {
         Some(shading)
     }
 
+    /// The shading point of `hit` on `ray` ([`Surface::at`]).
+    pub fn surface(&self, ray: &Ray, hit: &Hit) -> Surface {
+        self.surface_at(ray, hit).0
+    }
+
+    /// [`Surface::at`] with this world's instance matrices.
+    #[inline(always)]
+    fn surface_at(&self, ray: &Ray, hit: &Hit) -> (Surface, [Vec2; 2], Vec4) {
+        let i = hit.instance as usize;
+        Surface::at(
+            &self.scene,
+            self.normal_matrices[i],
+            self.linear[i],
+            ray,
+            hit,
+        )
+    }
+
+    /// The shading point of `hit` on `ray` and the material's values there.
+    #[inline(always)]
+    pub fn shaded(&self, ray: &Ray, hit: &Hit, distribution: Microfacet) -> (Surface, Shading) {
+        let (surface, uv, color) = self.surface_at(ray, hit);
+        if color == Vec4::ONE {
+            if let Some(shading) = self.uniform_shading(surface.material, distribution) {
+                return (surface, shading);
+            }
+        }
+        let mat = &self.scene.materials[surface.material as usize];
+        (
+            surface,
+            shade_material(&self.scene, mat, uv, color, distribution),
+        )
+    }
+
     /// The BSDF of `params` (`Bsdf::new`), taken from the material's precomputed one when
     /// `params` are that material's uniform parameters.
     #[inline]
@@ -176,28 +213,26 @@ impl World {
     }
 
     /// The views of a camera path through this scene.
-    pub fn path_views(
-        &self,
-        path: &crate::camera_path::CameraPath,
-    ) -> Vec<crate::config::CameraConfig> {
+    pub fn path_views(&self, path: &CameraPath) -> Vec<CameraConfig> {
         path.views(&self.scene_camera(), self.scene_centre())
     }
 
-    /// The render camera of `config`: the scene camera with the configuration's overrides, and
-    /// its thin lens focused at `focus_distance` or, without one, on what the image centre sees.
-    pub fn camera(&self, config: &crate::Config) -> crate::Camera {
-        let cam = config.camera.apply(&self.scene_camera());
-        let camera = crate::Camera::new(&cam, config.width, config.height);
-        if config.camera.lens_radius <= 0.0 {
+    /// The render camera of `view` for a `width` x `height` image: the scene camera with the
+    /// view's overrides, and its thin lens focused at `focus_distance` or, without one, on what
+    /// the image centre sees.
+    pub fn camera(&self, view: &CameraConfig, width: u32, height: u32) -> Camera {
+        let cam = view.apply(&self.scene_camera());
+        let camera = Camera::new(&cam, width, height);
+        if view.lens_radius <= 0.0 {
             return camera;
         }
-        let focus = config.camera.focus_distance.unwrap_or_else(|| {
-            let centre = glam::Vec2::new(config.width as f32, config.height as f32) * 0.5;
+        let focus = view.focus_distance.unwrap_or_else(|| {
+            let centre = glam::Vec2::new(width as f32, height as f32) * 0.5;
             let ray = camera.ray(centre, glam::Vec2::splat(0.5)).ray;
             self.accel
                 .intersect(&ray)
                 .map_or(1.0, |h| h.t * ray.direction.dot(camera.forward()))
         });
-        camera.with_lens(config.camera.lens_radius, focus)
+        camera.with_lens(view.lens_radius, focus)
     }
 }

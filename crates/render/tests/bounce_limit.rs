@@ -23,7 +23,7 @@ fn convex_object_under_uniform_light_with_a_bounce_limit() {
     for bounces in [1, 2] {
         let mut cfg = config(32, 32, 256);
         cfg.max_bounces = Some(bounces);
-        let film = render(&world, &world.camera(&cfg), &cfg);
+        let film = render(&world, &cfg.render_camera(&world), &cfg);
         for (x, y) in [(15, 15), (16, 16), (14, 17)] {
             let v = film.pixels[y * 32 + x].mean;
             assert!(
@@ -90,7 +90,7 @@ fn lambertian_floor_under_a_square_light_with_a_bounce_limit() {
     for bounces in [1, 2] {
         let mut cfg = config(8, 8, 1024);
         cfg.max_bounces = Some(bounces);
-        let film = render(&w, &w.camera(&cfg), &cfg);
+        let film = render(&w, &cfg.render_camera(&w), &cfg);
         let mean = film.pixels.iter().map(|p| p.mean.x).sum::<f32>() / 64.0;
         assert!(
             (mean - want).abs() < 0.01 * want,

@@ -25,7 +25,7 @@ fn config() -> Config {
 fn one_and_two_threads_give_the_same_film() {
     let world = cornell();
     let cfg = config();
-    let camera = world.camera(&cfg);
+    let camera = cfg.render_camera(&world);
     let one = in_pool(1, || render(&world, &camera, &cfg));
     let two = in_pool(2, || render(&world, &camera, &cfg));
     assert!(one == two, "films differ between 1 and 2 threads");
@@ -44,7 +44,7 @@ fn one_and_two_threads_give_the_same_film() {
 fn stopped_and_resumed_render_equals_an_uninterrupted_one() {
     let world = cornell();
     let cfg = config();
-    let camera = world.camera(&cfg);
+    let camera = cfg.render_camera(&world);
     let straight = render(&world, &camera, &cfg);
 
     // Stop in the middle of the second pass (after three bands), checkpoint, reload, resume.

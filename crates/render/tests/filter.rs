@@ -42,7 +42,7 @@ fn frames(world: &World, c: &Config, n: u32) -> Pipeline {
 fn reference(world: &World, c: &Config) -> Vec<glam::Vec3> {
     let film = render(
         world,
-        &world.camera(c),
+        &c.render_camera(world),
         &Config {
             spp: 1024,
             ..c.clone()

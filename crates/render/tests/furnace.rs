@@ -23,7 +23,7 @@ fn furnace(
         Vec3::new(0.0, 0.5, 4.0),
     ));
     let cfg = config(48, 48, spp);
-    let camera = world.camera(&cfg);
+    let camera = cfg.render_camera(&world);
     let film = render(&world, &camera, &cfg);
     let mean = film
         .pixels
@@ -121,7 +121,7 @@ fn grey_lambertian_sphere_matches_the_geometric_series() {
         Vec3::new(0.0, 0.0, 4.0),
     ));
     let cfg = config(32, 32, 32);
-    let camera = world.camera(&cfg);
+    let camera = cfg.render_camera(&world);
     let film = render(&world, &camera, &cfg);
     // The centre pixels see the sphere.
     for (x, y) in [(15, 15), (16, 16), (14, 17)] {

@@ -32,7 +32,7 @@ fn cornell_box_agrees_with_mitsuba() {
         spp,
         ..Config::default()
     };
-    let camera = world.camera(&config);
+    let camera = config.render_camera(&world);
     let film = render(&world, &camera, &config);
     let ours: Vec<Vec3> = film.layer(|p| p.mean);
 

@@ -37,7 +37,7 @@ fn header(cfg: &Config) -> Header {
 /// Samples `start..end` of `cfg`'s render.
 fn range(world: &World, cfg: &Config, start: u32, end: u32) -> Film {
     let mut film = Film::new(cfg.width, cfg.height);
-    let camera = world.camera(cfg);
+    let camera = cfg.render_camera(world);
     let cancel = AtomicBool::new(false);
     assert!(render_range_pass(
         world,
@@ -79,7 +79,7 @@ fn write_parts(world: &World, cfg: &Config, d: &Path, ranges: &[(u32, u32)]) -> 
 fn any_split_merges_to_the_single_render() {
     let world = cornell();
     let cfg = config();
-    let whole = render(&world, &world.camera(&cfg), &cfg);
+    let whole = render(&world, &cfg.render_camera(&world), &cfg);
     let d = dir("split");
     for split in [
         vec![(0, 8)],

@@ -27,7 +27,11 @@ fn config() -> Config {
 /// pass and the lighting pass together trace exactly the reference's paths.
 /// The reference path tracer's image of `cfg` at `spp` samples per pixel.
 fn reference(world: &World, cfg: &Config, spp: u32) -> pathlight_render::film::Film {
-    render(world, &world.camera(cfg), &Config { spp, ..cfg.clone() })
+    render(
+        world,
+        &cfg.render_camera(world),
+        &Config { spp, ..cfg.clone() },
+    )
 }
 
 #[test]

@@ -60,7 +60,7 @@ fn reproject(
     to: &Config,
 ) -> (Vec<PixelStats>, ReprojectionReport) {
     let from = pipeline.camera().expect("warmed").clone();
-    let camera = world.camera(to);
+    let camera = to.render_camera(world);
     let mut history = pipeline.history.clone();
     let mut probability = pipeline.adaptive.probability.clone();
     let report = pipeline.reprojection.reproject(
@@ -229,7 +229,7 @@ fn mirrors_glass_hidden_points_and_view_dependent_gloss_are_not_carried() {
 
         // Translate to the right, where the occluder hides part of the wall that was seen.
         let to = with_view(&cfg, wall_view(1.0));
-        let eye = world.camera(&to).position();
+        let eye = to.render_camera(&world).position();
         let (_, report) = reproject(&mut pipeline, &world, &to);
         let slots = &pipeline.reprojection.slots.current;
         assert!(
@@ -325,7 +325,7 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
         };
         let reference = render(
             &world,
-            &world.camera(&plain),
+            &plain.render_camera(&world),
             &Config {
                 spp: 1024,
                 seed: 99,
@@ -334,7 +334,7 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
         );
         let fresh = render(
             &world,
-            &world.camera(&plain),
+            &plain.render_camera(&world),
             &Config {
                 spp: frames,
                 seed: 5,
@@ -347,7 +347,7 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
         // The pixels that kept (most of) their history, edges of the new view included:
         // a state that lands on a pixel whose footprint covers another surface too would
         // bring only part of the truth, and must have been refused there (module docs).
-        let edges = edges(&world, &world.camera(&plain), 48, 36);
+        let edges = edges(&world, &plain.render_camera(&world), 48, 36);
         let keep: Vec<bool> = pipeline.history.iter().map(|h| h.n > frames / 2).collect();
         let kept_edges = keep.iter().zip(&edges).filter(|(&k, &e)| k && e).count();
         eprintln!("samples {samples}: {kept_edges} edge pixels kept their history");

@@ -83,7 +83,7 @@ fn unbiased_frames_converge_to_the_reference_direct_light() {
     let plain = config(RestirConfig::default());
     let film = render(
         &world,
-        &world.camera(&plain),
+        &plain.render_camera(&world),
         &Config {
             spp: 4096,
             ..plain.clone()

@@ -6,7 +6,6 @@ use common::{config, quad, scene, world};
 use glam::{Vec3, Vec4};
 use pathlight_accel::Ray;
 use pathlight_render::renderer::render;
-use pathlight_render::surface::Surface;
 use pathlight_scene::{
     AlphaMode, ColorSpace, Material, PunctualKind, PunctualLight, Texture, TextureRef,
 };
@@ -29,7 +28,7 @@ fn seen_through(material: Material) -> f32 {
         Vec3::new(0.0, 0.0, 3.0),
     ));
     let cfg = config(16, 16, 256);
-    let film = render(&w, &w.camera(&cfg), &cfg);
+    let film = render(&w, &cfg.render_camera(&w), &cfg);
     let mut s = 0.0;
     for y in 4..12 {
         for x in 4..12 {
@@ -89,7 +88,7 @@ fn blended_occluders_let_one_minus_alpha_through_shadow_rays() {
     let mut cfg = config(16, 16, 256);
     cfg.max_bounces = Some(1);
     cfg.camera.fov_y = Some(2.0);
-    let film = render(&w, &w.camera(&cfg), &cfg);
+    let film = render(&w, &cfg.render_camera(&w), &cfg);
     let centre = film.pixels[8 * 16 + 8].mean.x;
     assert!((centre - 0.36).abs() < 0.03, "{centre}");
 }
@@ -111,7 +110,7 @@ fn mapped_normal(n: Vec3, scale: f32) -> Vec3 {
     let w = world(s);
     let ray = Ray::new(Vec3::new(0.1, 0.2, 2.0), Vec3::NEG_Z);
     let hit = w.accel.intersect(&ray).unwrap();
-    Surface::new(&w, &ray, &hit).ns
+    w.surface(&ray, &hit).ns
 }
 
 #[test]
@@ -193,9 +192,9 @@ fn precomputed_materials_shade_as_the_material_at_the_hit() {
     for (m, mat) in materials.iter().enumerate() {
         let (w, ray, hit) = quad_hit(m);
         for d in [Microfacet::Ggx, Microfacet::Beckmann] {
-            let (surface, got) = Surface::shaded(&w, &ray, &hit, d);
+            let (surface, got) = w.shaded(&ray, &hit, d);
             // The constant texture makes the texture coordinates irrelevant.
-            let want = shade_material(&w, mat, [Vec2::ZERO; 2], Vec4::ONE, d);
+            let want = shade_material(&w.scene, mat, [Vec2::ZERO; 2], Vec4::ONE, d);
             assert_eq!(got.params, want.params, "{}", mat.name);
             assert_eq!(
                 (got.alpha, got.volume, got.sigma_a),
@@ -226,7 +225,7 @@ fn precomputed_materials_shade_as_the_material_at_the_hit() {
     }
     // The texture is applied: 0.5 x (0.5, 0.25, 1), up to the texture's 8 bits.
     let (w, ray, hit) = quad_hit(4);
-    let (_, shading) = Surface::shaded(&w, &ray, &hit, Microfacet::Ggx);
+    let (_, shading) = w.shaded(&ray, &hit, Microfacet::Ggx);
     let want = Vec3::new(0.25, 0.125, 0.5);
     assert!(
         shading.params.base_color.abs_diff_eq(want, 0.002),

@@ -75,7 +75,7 @@ use pathlight_core::rng::{hash, unit_f32};
 use serde::{Deserialize, Serialize};
 
 use super::accumulation::PixelStats;
-use crate::config::ConfigError;
+use crate::error::ConfigError;
 
 /// `eps` of Eq. 12, in units of radiance: a pixel without variance or luminance (black after a
 /// few samples) has `V = 1`, so it keeps being sampled during the schedule.

@@ -333,7 +333,7 @@ impl Pipeline {
         }
         self.epoch_config = c;
         let previous = self.camera.take();
-        let camera = world.camera(&self.config);
+        let camera = self.config.render_camera(world);
         let (w, h) = (self.config.width, self.config.height);
         let resized = (self.gbuffer.width, self.gbuffer.height) != (w, h);
         self.gbuffer.resize(w, h);
@@ -425,7 +425,7 @@ impl Pipeline {
             let tracer = PathTracer {
                 world,
                 camera,
-                config: &self.epoch_config,
+                settings: self.epoch_config.path_settings(),
             };
             let spp = self.epoch_config.spp.max(1);
             let pixels = self.history.len() as u64;

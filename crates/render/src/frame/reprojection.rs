@@ -117,7 +117,7 @@ use crate::bsdf::fresnel::{f0_from_ior, schlick_weight};
 use crate::bsdf::microfacet::Ndf;
 use crate::bsdf::{Microfacet, DELTA_ALPHA};
 use crate::camera::Camera;
-use crate::config::ConfigError;
+use crate::error::ConfigError;
 use crate::path::Bounce;
 use crate::world::World;
 

@@ -88,7 +88,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::bsdf::{Bsdf, BsdfAt};
-use crate::config::ConfigError;
+use crate::error::ConfigError;
 use crate::light::{LightPoint, LightSample, Lights};
 use crate::path::{PathTracer, Vertex};
 
@@ -820,7 +820,7 @@ impl Restir {
     ) -> RestirTimes {
         let (width, gbuffer) = (gbuffer.width, &gbuffer.pixels[..]);
         let n = gbuffer.len();
-        let seed = tracer.config.seed;
+        let seed = tracer.settings.seed;
         let lights = &tracer.world.lights;
         let mut times = RestirTimes::default();
         if self.previous.len() != n {
@@ -1044,7 +1044,7 @@ impl Restir {
         index: u32,
     ) -> u64 {
         let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
-        let streams = PixelStreams::new(tracer.config.seed, 1, index);
+        let streams = PixelStreams::new(tracer.settings.seed, 1, index);
         let previous = &self.previous;
         let previous_receivers = &self.previous_receivers;
         let previous_gbuffer = &self.previous_gbuffer;
@@ -1109,7 +1109,7 @@ impl Restir {
         iteration: u32,
     ) -> u64 {
         let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
-        let seed = tracer.config.seed;
+        let seed = tracer.settings.seed;
         self.scratch
             .resize(self.reservoirs.len(), Reservoir::default());
         if iteration == 0 || self.keys.len() != gbuffer.len() {

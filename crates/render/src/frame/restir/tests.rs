@@ -157,7 +157,7 @@ fn receiver(albedo: f32) -> Receiver {
 /// The default configuration and camera of `world`, for a [`tracer`].
 fn view(world: &World) -> (Config, crate::camera::Camera) {
     let config = Config::default();
-    let camera = world.camera(&config);
+    let camera = config.render_camera(world);
     (config, camera)
 }
 
@@ -169,7 +169,7 @@ fn tracer<'a>(
     PathTracer {
         world,
         camera,
-        config,
+        settings: config.path_settings(),
     }
 }
 
