@@ -11,6 +11,7 @@ use pathlight_render::config::Tonemap;
 use pathlight_render::denoise::Method;
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
+use pathlight_render::frame::views;
 use pathlight_render::sampler::SamplerKind;
 use pathlight_render::Config;
 
@@ -85,10 +86,8 @@ pub struct ConfigArgs {
     #[arg(long, value_name = "NAME", value_parser = parse_tonemap)]
     pub tonemap: Option<Tonemap>,
 
-    /// What frames show (view, play): final, noisy, direct, indirect, variance, samples,
-    /// albedo, normal, depth, motion, roughness, metallic, bounce-albedo, bounce-direction,
-    /// probability, reprojected, rejection.
-    #[arg(long, value_name = "MODE", value_parser = parse_display)]
+    /// What frames show (view, play): one of the stages' views, by name.
+    #[arg(long, value_name = "MODE", value_parser = parse_display())]
     pub display: Option<DisplayMode>,
 
     /// Frame pipeline: do not accumulate frames while the camera is still.
@@ -261,8 +260,11 @@ fn parse_tonemap(s: &str) -> Result<Tonemap, String> {
     parse_named(s, "clamp, aces")
 }
 
-fn parse_display(s: &str) -> Result<DisplayMode, String> {
-    s.parse()
+/// The stages' views, by name (`--help` lists them).
+fn parse_display() -> impl clap::builder::TypedValueParser<Value = DisplayMode> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(views::names())
+        .map(|name| name.parse::<DisplayMode>().expect("one of the views"))
 }
 
 /// Reads a configuration file (TOML, any subset of [`Config`]'s fields over `base`).
@@ -325,7 +327,7 @@ impl ConfigArgs {
         if let Some(v) = self.tonemap {
             c.display.tonemap = v;
         }
-        if let Some(v) = self.display {
+        if let Some(v) = self.display.clone() {
             c.display.mode = v;
         }
         if self.no_accumulate {

@@ -261,7 +261,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
                     )?,
                     FrameFormat::Exr => {
                         pool.install(|| {
-                            linear = pipeline.sources().linear(config.display.mode);
+                            linear = pipeline.linear(&config.display.mode);
                         });
                         write_rgb(
                             &target,

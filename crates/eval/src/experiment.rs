@@ -273,11 +273,13 @@ impl Runner<'_> {
                         if let Some((label, image)) = snapshot {
                             snapshots.images.push((c.name.clone(), label, image));
                         }
-                        for &mode in &spec.display_modes {
+                        for mode in &spec.display_modes {
                             let mut rgba = Vec::new();
                             let display = &pipeline.config().display;
-                            pipeline.sources().rgba8(mode, display, &mut rgba);
-                            snapshots.displays.push((c.name.clone(), mode, rgba));
+                            pipeline.rgba8(mode, display, &mut rgba);
+                            snapshots
+                                .displays
+                                .push((c.name.clone(), mode.clone(), rgba));
                         }
                     }
                 }
@@ -375,8 +377,13 @@ impl ViewRun<'_> {
                 continue;
             }
             let image = Image::new(w, h, pipeline.image());
-            let mean_spp = pipeline.history.iter().map(|p| p.n as f64).sum::<f64>()
-                / pipeline.history.len().max(1) as f64;
+            let mean_spp = pipeline
+                .frame
+                .history
+                .iter()
+                .map(|p| p.n as f64)
+                .sum::<f64>()
+                / pipeline.frame.history.len().max(1) as f64;
             for point in points {
                 out.push(self.measurement(point, mean_spp, ms, &stages, &image)?);
                 let label = match point {

@@ -17,6 +17,7 @@ use pathlight_denoise::{FilterConfig, FilterError};
 
 pub use crate::camera::CameraConfig;
 pub use crate::error::ConfigError;
+pub use crate::frame::display::{DisplayConfig, Tonemap};
 pub use crate::path::MAX_PATH_VERTICES;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -78,38 +79,6 @@ impl Default for FrameConfig {
             filter: FilterConfig::default(),
         }
     }
-}
-
-/// Tone mapping and the picture shown.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DisplayConfig {
-    /// Multiplier of linear radiance before tone mapping.
-    pub exposure: f32,
-    pub tonemap: Tonemap,
-    /// What the viewer shows and the player writes.
-    pub mode: crate::frame::display::DisplayMode,
-}
-
-impl Default for DisplayConfig {
-    fn default() -> Self {
-        Self {
-            exposure: 1.0,
-            tonemap: Tonemap::Clamp,
-            mode: crate::frame::display::DisplayMode::Final,
-        }
-    }
-}
-
-/// Linear radiance (after exposure) to display values in [0, 1], then sRGB-encoded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Tonemap {
-    /// Clamp to [0, 1] (what `pathlight render` writes to PNG).
-    #[default]
-    Clamp,
-    /// The ACES filmic curve (Narkowicz's fit): highlights roll off instead of clipping.
-    Aces,
 }
 
 /// Largest image side accepted.
@@ -241,6 +210,13 @@ impl Config {
             if let Some(v) = v.filter(|v| !v.iter().all(|c| c.is_finite())) {
                 return Err(err(field, &format!("{v:?}"), "finite".into()));
             }
+        }
+        if crate::frame::views::find(self.display.mode.name()).is_none() {
+            return Err(err(
+                "mode",
+                &self.display.mode,
+                format!("one of {}", crate::frame::views::names().join(", ")),
+            ));
         }
         self.frame.adaptive.validate()?;
         self.frame.reprojection.validate()?;

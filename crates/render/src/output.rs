@@ -8,9 +8,8 @@ use glam::Vec3;
 use image::ImageEncoder;
 use pathlight_core::color::linear_to_srgb8;
 
-use crate::config::DisplayConfig;
 use crate::film::Film;
-use crate::frame::display::tonemap;
+use crate::frame::display::{tonemap, DisplayConfig};
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {

@@ -68,12 +68,12 @@ fn the_filter_keeps_the_history_and_lowers_the_error() {
     let plain = frames(&world, &config(Method::None), 8);
     let filtered = frames(&world, &config(Method::DataDriven), 8);
     // The history, and so the unfiltered image, is the plain pipeline's, bit for bit.
-    for (a, b) in plain.history.iter().zip(&filtered.history) {
+    for (a, b) in plain.frame.history.iter().zip(&filtered.frame.history) {
         assert_eq!(a, b);
     }
     assert_eq!(
         plain.image(),
-        filtered.sources().linear(DisplayMode::Accumulated)
+        filtered.linear(&DisplayMode::named("accumulated"))
     );
     // Against the reference path tracer at 1024 spp, the filtered 8-spp image is much closer
     // than the unfiltered one (eval's 001-quality measures 0.11x at 320x180 with the 21-pixel
@@ -100,7 +100,7 @@ fn feature_statistics_see_edges_and_not_flat_walls() {
     let world = cornell();
     let p = frames(&world, &config(Method::DataDriven), 16);
     let normal_variance: Vec<f32> = (0..64 * 48)
-        .map(|i| p.sources().value(DisplayMode::VarianceNormal, i).x)
+        .map(|i| p.value(&DisplayMode::named("variance-normal"), i).x)
         .collect();
     // Inside a flat wall every sample has the same normal, whatever the jitter: most pixels.
     let flat = normal_variance.iter().filter(|v| **v == 0.0).count();
@@ -131,7 +131,7 @@ fn switching_the_filter_keeps_the_accumulation() {
     let r = p.render_frame(&world);
     assert_eq!(r.accumulated, 6);
     // Off again: the image is the accumulated one.
-    assert_eq!(p.image(), p.sources().linear(DisplayMode::Accumulated));
+    assert_eq!(p.image(), p.linear(&DisplayMode::named("accumulated")));
 }
 
 #[test]
@@ -175,7 +175,7 @@ fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
     assert_eq!(blended.filter.shares().len(), n);
     let mut valid = 0;
     for i in 0..n {
-        let v = blended.sources().value(DisplayMode::SureShare, i);
+        let v = blended.value(&DisplayMode::named("sure-share"), i);
         if v.x.is_nan() {
             continue;
         }
@@ -193,7 +193,7 @@ fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
     p.render_frame(&world);
     assert!(p.filter.shares().is_empty());
     assert_eq!(
-        p.sources().value(DisplayMode::SureShare, 0),
+        p.value(&DisplayMode::named("sure-share"), 0),
         glam::Vec3::splat(-1.0)
     );
 }
@@ -302,7 +302,7 @@ fn a_still_view_is_filtered_again_as_its_frames_grow() {
         }
         assert!(once.image() == every.image(), "frame {frame}");
         let (image, filtered) = (grown.image(), every.image());
-        let accumulated = grown.sources().linear(DisplayMode::Accumulated);
+        let accumulated = grown.linear(&DisplayMode::named("accumulated"));
         if [1, 2, 3, 4, 5, 7, 9, 12].contains(&frame) {
             assert!(image == filtered, "frame {frame}");
             // The pixels that passed through (the light source; the sky outside the box).
@@ -368,10 +368,9 @@ fn between_refreshes_a_pixel_keeps_its_own_light_fresh() {
     (c.frame.filter.sigma_direct, c.frame.filter.sigma_indirect) = (30.0, 30.0);
     let mut p = Pipeline::new(c);
     let light = |p: &Pipeline| {
-        let s = p.sources();
         (
-            s.linear(DisplayMode::Direct),
-            s.linear(DisplayMode::Indirect),
+            p.linear(&DisplayMode::named("direct")),
+            p.linear(&DisplayMode::named("indirect")),
         )
     };
     let (mut last, mut shares, mut then) = (Vec::new(), Vec::new(), (Vec::new(), Vec::new()));
@@ -379,7 +378,7 @@ fn between_refreshes_a_pixel_keeps_its_own_light_fresh() {
     for frame in 1..=11u32 {
         p.render_frame(&world);
         if [1, 2, 3, 4, 5, 7, 9].contains(&frame) {
-            (last, shares, then) = (p.image(), p.sources().sure_shares.to_vec(), light(&p));
+            (last, shares, then) = (p.image(), p.filter.shares().to_vec(), light(&p));
             continue;
         }
         let (direct, indirect) = light(&p);

@@ -191,7 +191,7 @@ fn frame_hash(pipeline: &Pipeline, report: &FrameReport) -> u64 {
     for v in pipeline.image() {
         h.vec3(v);
     }
-    for s in &pipeline.history {
+    for s in &pipeline.frame.history {
         h.u64(s.n as u64);
         h.vec3(s.direct.mean);
         h.vec3(s.indirect.mean);
@@ -242,7 +242,7 @@ fn sequence(world: &World, base: &Config, views: &[CameraConfig], frames: u32) -
         pipeline.display(&mut report);
         let mut h = Fnv::new();
         h.bytes(&pipeline.rgba);
-        for v in pipeline.sources().linear(c.display.mode) {
+        for v in pipeline.linear(&c.display.mode) {
             h.vec3(v);
         }
         hashes.push(h.0);

@@ -10,6 +10,7 @@ use glam::Vec2;
 use pathlight_render::camera_path::{CameraPath, PathKind};
 use pathlight_render::config::FrameConfig;
 use pathlight_render::frame::display::DisplayMode;
+use pathlight_render::frame::views;
 use pathlight_render::frame::{Pipeline, ACCUMULATE, DISPLAY, LIGHTING, PRIMARY};
 use pathlight_render::renderer::render;
 use pathlight_render::{Config, World};
@@ -49,7 +50,7 @@ fn still_frames_accumulate_to_the_reference_render() {
             assert!(r.rays >= 40 * 30, "{} rays", r.rays);
         }
         let film = reference(&world, &cfg, 8);
-        for (h, p) in pipeline.history.iter().zip(&film.pixels) {
+        for (h, p) in pipeline.frame.history.iter().zip(&film.pixels) {
             assert_eq!(h.n, p.n);
             assert_eq!(h.direct.mean, p.direct, "{max_bounces:?}");
             assert_eq!(h.indirect.mean, p.indirect, "{max_bounces:?}");
@@ -62,7 +63,13 @@ fn still_frames_accumulate_to_the_reference_render() {
         }
         // Albedo, normal and depth of the G-buffer are the reference's first-hit features of
         // the last sample: their means agree with the film's over the whole image.
-        let albedo: f32 = pipeline.gbuffer.pixels.iter().map(|g| g.albedo.x).sum();
+        let albedo: f32 = pipeline
+            .frame
+            .gbuffer
+            .pixels
+            .iter()
+            .map(|g| g.albedo.x)
+            .sum();
         let film_albedo: f32 = film.pixels.iter().map(|p| p.albedo.x).sum();
         assert!((albedo - film_albedo).abs() < 0.05 * film_albedo);
     }
@@ -75,7 +82,7 @@ fn still_frames_accumulate_to_the_reference_render() {
         pipeline.render_frame(&world);
     }
     let film = reference(&world, &cfg, 8);
-    for (h, p) in pipeline.history.iter().zip(&film.pixels) {
+    for (h, p) in pipeline.frame.history.iter().zip(&film.pixels) {
         assert_eq!(h.n, 8);
         assert!(h
             .mean()
@@ -137,6 +144,7 @@ fn motion_vectors_match_a_translating_camera() {
     let mut pipeline = Pipeline::new(at(0.0));
     let first = pipeline.render_frame(&world);
     assert!(pipeline
+        .frame
         .gbuffer
         .pixels
         .iter()
@@ -147,7 +155,7 @@ fn motion_vectors_match_a_translating_camera() {
     assert_eq!(second.epoch, first.epoch + 1);
     let f = 0.5 * 30.0 / (0.5 * fov.to_radians()).tan();
     let mut checked = 0;
-    for g in pipeline.gbuffer.pixels.iter().filter(|g| !g.is_sky()) {
+    for g in pipeline.frame.gbuffer.pixels.iter().filter(|g| !g.is_sky()) {
         let want = t * f / g.depth;
         assert!(
             (g.motion.x - want).abs() < 1e-3 && g.motion.y.abs() < 1e-3,
@@ -171,7 +179,7 @@ fn changes_reset_the_history_and_display_settings_do_not() {
     // Display settings and the frame limit leave the history alone.
     let mut c = config();
     c.display.exposure = 2.0;
-    c.display.mode = DisplayMode::Normal;
+    c.display.mode = DisplayMode::named("normal");
     c.frame.max_frames = 100;
     pipeline.set_config(&c);
     let r = pipeline.render_frame(&world);
@@ -213,9 +221,9 @@ fn every_display_mode_shows_the_box() {
     let mut pipeline = Pipeline::new(config());
     pipeline.render_frame(&world);
     pipeline.render_frame(&world);
-    for mode in DisplayMode::ALL {
+    for name in views::names() {
         let mut c = config();
-        c.display.mode = mode;
+        c.display.mode = name.parse().unwrap();
         pipeline.set_config(&c);
         let mut r = pipeline.render_frame(&world);
         pipeline.display(&mut r);
@@ -224,34 +232,34 @@ fn every_display_mode_shows_the_box() {
         // Uniform here: samples (every pixel has as many), metallic (zero in the box), motion
         // (the camera is still), seed 000's, seed 004's and seed 001's modes (their techniques
         // are off; see tests/reprojection.rs, tests/restir.rs and tests/filter.rs).
-        let uniform = matches!(
-            mode,
-            DisplayMode::Samples
-                | DisplayMode::Metallic
-                | DisplayMode::Motion
-                | DisplayMode::Probability
-                | DisplayMode::Reprojected
-                | DisplayMode::Rejection
-                | DisplayMode::ReservoirM
-                | DisplayMode::ReservoirWeight
-                | DisplayMode::VarianceDepth
-                | DisplayMode::VarianceNormal
-                | DisplayMode::VarianceTexture
-                | DisplayMode::VarianceDirection
-                | DisplayMode::VarianceTexture2
-                | DisplayMode::SureShare
-        );
+        let uniform = [
+            "samples",
+            "metallic",
+            "motion",
+            "probability",
+            "reprojected",
+            "rejection",
+            "reservoir-m",
+            "reservoir-weight",
+            "variance-depth",
+            "variance-normal",
+            "variance-texture",
+            "variance-direction",
+            "variance-texture2",
+            "sure-share",
+        ]
+        .contains(&name);
         // Roughness: the walls' 1 and the open front's sky.
-        let least = if mode == DisplayMode::Roughness { 2 } else { 4 };
+        let least = if name == "roughness" { 2 } else { 4 };
         assert!(
             uniform || distinct.len() >= least,
-            "{mode:?}: {} distinct colours",
+            "{name}: {} distinct colours",
             distinct.len()
         );
     }
     // The final image: the left wall is red, the right wall green.
     let mut c = config();
-    c.display.mode = DisplayMode::Final;
+    c.display.mode = DisplayMode::FINAL;
     pipeline.set_config(&c);
     let mut r = pipeline.render_frame(&world);
     pipeline.display(&mut r);
@@ -310,7 +318,7 @@ fn skipping_empty_iterations_keeps_the_schedules_decisions() {
     assert!(busy.iter().all(|&n| n > 0), "{busy:?}");
     let nonempty: Vec<u64> = all.iter().copied().filter(|&n| n > 0).collect();
     assert_eq!(busy, nonempty);
-    assert_eq!(skipped.history, plain.history);
+    assert_eq!(skipped.frame.history, plain.frame.history);
     assert_eq!(skipped.adaptive.probability, plain.adaptive.probability);
 }
 
@@ -351,7 +359,7 @@ fn budget_frames_trace_a_uniform_frames_samples() {
     assert!(schedule_frames < 32, "{schedule_frames} frames");
     let p = pipeline.adaptive.probability.clone();
     assert!(p.iter().all(|&p| (4.0 / 32.0..=1.0).contains(&p)));
-    let start: Vec<u32> = pipeline.history.iter().map(|h| h.n).collect();
+    let start: Vec<u32> = pipeline.frame.history.iter().map(|h| h.n).collect();
     let frames = 40;
     let mut total = 0;
     for _ in 0..frames {
@@ -369,7 +377,7 @@ fn budget_frames_trace_a_uniform_frames_samples() {
     // The samples went in proportion to P: pixels of P = 1 took 1 / mean(P) per frame.
     let mean_p = p.iter().sum::<f32>() as f64 / pixels as f64;
     let (mut got, mut expected) = (0.0, 0.0);
-    for ((h, &n0), &p) in pipeline.history.iter().zip(&start).zip(&p) {
+    for ((h, &n0), &p) in pipeline.frame.history.iter().zip(&start).zip(&p) {
         if p == 1.0 {
             got += (h.n - n0) as f64;
             expected += frames as f64 / mean_p;
@@ -377,4 +385,17 @@ fn budget_frames_trace_a_uniform_frames_samples() {
     }
     assert!(expected > 0.0);
     assert!((got / expected - 1.0).abs() < 0.05, "{got} vs {expected}");
+}
+
+/// The list of views that parsing and the viewer's menu read names the pipeline's stages, in
+/// the frame's order, each with its own views.
+#[test]
+fn the_stages_views_are_the_listed_ones() {
+    let pipeline = Pipeline::new(config());
+    let stages = pipeline.stages();
+    assert_eq!(stages.len(), views::STAGES.len());
+    for (stage, (name, listed)) in stages.iter().zip(views::STAGES) {
+        assert_eq!(stage.name(), name);
+        assert_eq!(stage.views(), listed);
+    }
 }

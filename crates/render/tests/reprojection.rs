@@ -61,7 +61,7 @@ fn reproject(
 ) -> (Vec<PixelStats>, ReprojectionReport) {
     let from = pipeline.camera().expect("warmed").clone();
     let camera = to.render_camera(world);
-    let mut history = pipeline.history.clone();
+    let mut history = pipeline.frame.history.clone();
     let mut probability = pipeline.adaptive.probability.clone();
     let report = pipeline.reprojection.reproject(
         world,
@@ -348,7 +348,12 @@ fn a_translated_diffuse_view_agrees_with_a_fresh_render() {
         // a state that lands on a pixel whose footprint covers another surface too would
         // bring only part of the truth, and must have been refused there (module docs).
         let edges = edges(&world, &plain.render_camera(&world), 48, 36);
-        let keep: Vec<bool> = pipeline.history.iter().map(|h| h.n > frames / 2).collect();
+        let keep: Vec<bool> = pipeline
+            .frame
+            .history
+            .iter()
+            .map(|h| h.n > frames / 2)
+            .collect();
         let kept_edges = keep.iter().zip(&edges).filter(|(&k, &e)| k && e).count();
         eprintln!("samples {samples}: {kept_edges} edge pixels kept their history");
         let kept = keep.iter().filter(|&&k| k).count();
@@ -384,15 +389,20 @@ fn fresh_spp_fills_the_holes_of_a_move_at_once() {
         let mut pipeline = warm(&world, &cfg, frames);
         pipeline.set_config(&with_view(&cfg, path[1].clone()));
         let report = pipeline.render_frame(&world);
-        let kept = pipeline.history.iter().filter(|h| h.n > frames / 2).count();
-        let holes = pipeline.history.iter().filter(|h| h.n <= 8).count();
+        let kept = pipeline
+            .frame
+            .history
+            .iter()
+            .filter(|h| h.n > frames / 2)
+            .count();
+        let holes = pipeline.frame.history.iter().filter(|h| h.n <= 8).count();
         assert!(
             kept > pixels / 3 && holes > 20,
             "{kept} kept, {holes} holes"
         );
-        let n: Vec<u32> = pipeline.history.iter().map(|h| h.n).collect();
+        let n: Vec<u32> = pipeline.frame.history.iter().map(|h| h.n).collect();
         let next = pipeline.render_frame(&world);
-        let least = pipeline.history.iter().map(|h| h.n).min().unwrap();
+        let least = pipeline.frame.history.iter().map(|h| h.n).min().unwrap();
         if fresh_spp == 0 {
             // The thesis: one sample per pixel per frame, holes included.
             assert_eq!(n.iter().min(), Some(&1));
@@ -430,7 +440,7 @@ fn a_still_camera_gives_the_plain_frames() {
         };
         let a = warm(&world, &cfg, 8);
         let b = warm(&world, &plain, 8);
-        for (x, y) in a.history.iter().zip(&b.history) {
+        for (x, y) in a.frame.history.iter().zip(&b.frame.history) {
             assert_eq!(x.n, y.n);
             assert!(
                 x.mean()
@@ -512,7 +522,10 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
             for _ in 0..2 {
                 pipeline.render_frame(&world);
             }
-            images.push((pipeline.history.clone(), pipeline.filter.image.clone()));
+            images.push((
+                pipeline.frame.history.clone(),
+                pipeline.filter.image.clone(),
+            ));
         }
         images
     };
@@ -550,7 +563,7 @@ fn reprojected_frames_do_not_depend_on_the_thread_count() {
         }
         (
             out,
-            pipeline.history.clone(),
+            pipeline.frame.history.clone(),
             pipeline.adaptive.probability.clone(),
         )
     };
@@ -574,19 +587,19 @@ fn seed_000_display_modes_show_the_techniques() {
     pipeline.set_config(&with_view(&cfg, wall_view(1.0)));
     pipeline.render_frame(&world);
     for mode in [
-        DisplayMode::Probability,
-        DisplayMode::Reprojected,
-        DisplayMode::Rejection,
-        DisplayMode::Samples,
+        DisplayMode::named("probability"),
+        DisplayMode::named("reprojected"),
+        DisplayMode::named("rejection"),
+        DisplayMode::named("samples"),
     ] {
         let mut c = pipeline.config().clone();
-        c.display.mode = mode;
+        c.display.mode = mode.clone();
         pipeline.set_config(&c);
         let mut r = pipeline.render_frame(&world);
         pipeline.display(&mut r);
         let distinct: std::collections::HashSet<&[u8]> = pipeline.rgba.chunks(4).collect();
         // Reprojected with one state per pixel: kept or not.
-        let least = if mode == DisplayMode::Reprojected {
+        let least = if mode == DisplayMode::named("reprojected") {
             2
         } else {
             3
@@ -620,7 +633,7 @@ fn the_error_measure_samples_the_new_pixels_after_a_move() {
     let mut pipeline = warm(&world, &cfg, 48);
     pipeline.set_config(&with_view(&cfg, path[1].clone()));
     pipeline.render_frame(&world);
-    let before: Vec<u32> = pipeline.history.iter().map(|h| h.n).collect();
+    let before: Vec<u32> = pipeline.frame.history.iter().map(|h| h.n).collect();
     let new: Vec<bool> = before.iter().map(|&n| n <= 8).collect();
     let (holes, carried) = (
         new.iter().filter(|&&b| b).count(),
@@ -644,9 +657,12 @@ fn the_error_measure_samples_the_new_pixels_after_a_move() {
     // (A carried state a later sample disagrees with is dropped: its pixel starts again.)
     let added = |pick: &dyn Fn(usize) -> bool| {
         let (sum, count) = (0..pixels)
-            .filter(|&p| pick(p) && pipeline.history[p].n >= before[p])
+            .filter(|&p| pick(p) && pipeline.frame.history[p].n >= before[p])
             .fold((0u64, 0u64), |(s, c), p| {
-                (s + u64::from(pipeline.history[p].n - before[p]), c + 1)
+                (
+                    s + u64::from(pipeline.frame.history[p].n - before[p]),
+                    c + 1,
+                )
             });
         sum as f64 / count as f64
     };

@@ -187,11 +187,11 @@ fn restir_frames_report_their_passes_and_show_their_reservoirs() {
         );
     }
     for mode in [
-        DisplayMode::ReservoirM,
-        DisplayMode::ReservoirWeight,
-        DisplayMode::FrameDirect,
+        DisplayMode::named("reservoir-m"),
+        DisplayMode::named("reservoir-weight"),
+        DisplayMode::named("frame-direct"),
     ] {
-        cfg.display.mode = mode;
+        cfg.display.mode = mode.clone();
         pipeline.set_config(&cfg);
         let mut r = pipeline.render_frame(&world);
         pipeline.display(&mut r);

@@ -53,16 +53,16 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
 
 /// The display modes on the number keys 1 ... 9, 0.
 const NUMBER_MODES: [DisplayMode; 10] = [
-    DisplayMode::Final,
-    DisplayMode::Noisy,
-    DisplayMode::Direct,
-    DisplayMode::Indirect,
-    DisplayMode::Variance,
-    DisplayMode::Albedo,
-    DisplayMode::Normal,
-    DisplayMode::Depth,
-    DisplayMode::Motion,
-    DisplayMode::Samples,
+    DisplayMode::FINAL,
+    DisplayMode::named("noisy"),
+    DisplayMode::named("direct"),
+    DisplayMode::named("indirect"),
+    DisplayMode::named("variance"),
+    DisplayMode::named("albedo"),
+    DisplayMode::named("normal"),
+    DisplayMode::named("depth"),
+    DisplayMode::named("motion"),
+    DisplayMode::named("samples"),
 ];
 
 /// How the window starts, and hooks for automated tests.
@@ -279,7 +279,7 @@ impl Viewer {
                         Key::Num0,
                     ];
                     if let Some(i) = numbers.iter().position(|n| *n == k) {
-                        self.config.display.mode = NUMBER_MODES[i];
+                        self.config.display.mode = NUMBER_MODES[i].clone();
                     }
                 }
             }

@@ -6,8 +6,9 @@ use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
 use pathlight_render::denoise::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, Method};
 use pathlight_render::frame::adaptive::Measure;
-use pathlight_render::frame::display::DisplayMode;
+use pathlight_render::frame::display::{DisplayMode, View};
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
+use pathlight_render::frame::views;
 use pathlight_render::frame::{ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR};
 use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
@@ -114,19 +115,27 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
     }
 }
 
+/// The display menu: every stage's views under its name, the frame's last stage (the final
+/// image) first.
+pub fn menu() -> impl Iterator<Item = (&'static str, &'static [View])> {
+    views::STAGES.iter().rev().copied()
+}
+
 fn display(v: &mut Viewer, ui: &mut egui::Ui) {
     let d = &mut v.config.display;
+    let stage = views::find(d.mode.name()).map_or("", |(stage, _)| stage);
     egui::ComboBox::from_label("mode")
-        .selected_text(format!("{} ({})", d.mode.name(), d.mode.pass()))
+        .selected_text(format!("{} ({stage})", d.mode.name()))
         .show_ui(ui, |ui| {
-            for pass in [FILTER, ACCUMULATE, REPROJECT, LIGHTING, RESTIR, PRIMARY] {
-                ui.label(egui::RichText::new(pass).strong());
-                for m in DisplayMode::ALL.into_iter().filter(|m| m.pass() == pass) {
-                    ui.selectable_value(&mut d.mode, m, m.name());
+            for (stage, stage_views) in menu() {
+                ui.label(egui::RichText::new(stage).strong());
+                for v in stage_views {
+                    ui.selectable_value(&mut d.mode, DisplayMode::named(v.name), v.name)
+                        .on_hover_text(v.about);
                 }
             }
         });
-    if d.mode == DisplayMode::Rejection {
+    if d.mode.name() == "rejection" {
         ui.horizontal_wrapped(|ui| {
             for fate in Fate::ALL {
                 let [r, g, b] = fate.colour();
@@ -521,4 +530,38 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
              every frame)",
         );
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pathlight_render::frame::Pipeline;
+    use pathlight_render::Config;
+
+    /// The menu lists every view of every stage of the pipeline, each under its stage, and
+    /// the number keys' modes are among them.
+    #[test]
+    fn the_menu_lists_a_view_of_every_stage() {
+        let pipeline = Pipeline::new(Config::default());
+        let menu: Vec<(&str, &[View])> = menu().collect();
+        for stage in pipeline.stages() {
+            let listed = menu
+                .iter()
+                .find(|(name, _)| *name == stage.name())
+                .unwrap_or_else(|| panic!("stage {} is not in the menu", stage.name()));
+            assert!(!stage.views().is_empty(), "{} has no view", stage.name());
+            for view in stage.views() {
+                assert!(
+                    listed.1.contains(view),
+                    "{} of {} missing",
+                    view.name,
+                    stage.name()
+                );
+            }
+        }
+        assert_eq!(menu.len(), pipeline.stages().len());
+        for m in crate::NUMBER_MODES {
+            assert!(views::find(m.name()).is_some(), "{m}");
+        }
+    }
 }

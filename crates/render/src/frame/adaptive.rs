@@ -65,9 +65,15 @@
 //! [`AdaptiveConfig::keep_sampling_after`] lets them wait for that many iterations first, so
 //! that the frames right after a move trace the new pixels alone, as in Algorithm 2.
 //!
-//! Passes: this module has no pass of its own. Its decision ([`Schedule::wants`]) is read by
-//! the primary and lighting passes (which pixels are traced), and the accumulation pass fixes
-//! the probabilities ([`Adaptive::fix_probabilities`]). Its per-pixel state is `P`.
+//! Passes: this stage has no pass of its own. Before tracing, [`Adaptive::prepare`] measures
+//! the image and skips empty iterations, and [`Adaptive::schedule`] gives the frame's
+//! decisions ([`Schedule::wants`]), which the plan ([`super::plan::Planned`]) hands the
+//! primary and lighting passes (which pixels are traced); after the accumulation pass,
+//! [`Adaptive::end_frame`] moves the schedule on and fixes the probabilities at its end
+//! ([`Adaptive::fix_probabilities`]). Its per-pixel state is `P` (view `probability`).
+//!
+//! Its rule at a new epoch: the schedule restarts; the probabilities are cleared, except that
+//! forward reprojection carries them into the new view after a camera move.
 
 use glam::Vec3;
 use pathlight_core::color::luminance;
@@ -75,7 +81,13 @@ use pathlight_core::rng::{hash, unit_f32};
 use serde::{Deserialize, Serialize};
 
 use super::accumulation::PixelStats;
+use super::display::{View, ViewKind};
+use super::stage::Stage;
+use super::state::FrameState;
 use crate::error::ConfigError;
+
+/// The stage's name (the menu's heading of its view).
+pub const ADAPTIVE: &str = "adaptive";
 
 /// `eps` of Eq. 12, in units of radiance: a pixel without variance or luminance (black after a
 /// few samples) has `V = 1`, so it keeps being sampled during the schedule.
@@ -452,6 +464,97 @@ impl<'a> Schedule<'a> {
 }
 
 impl Adaptive {
+    pub const VIEWS: &'static [View] = &[View {
+        name: "probability",
+        about: "each pixel's fixed probability P of a sample per frame, as a heat map 0 to 1 \
+                (dark grey before the schedule fixes it)",
+        kind: ViewKind::Heat,
+    }];
+
+    /// At a new epoch: the schedule restarts; `clear`: the probabilities of the frame's
+    /// `pixels` start unfixed (not when reprojection carried them into the new view).
+    pub fn start_epoch(&mut self, pixels: usize, clear: bool) {
+        if clear {
+            self.reset(pixels);
+        }
+        self.iteration = 0;
+    }
+
+    /// Before a frame's tracing (with seed 000's techniques on): measures the image for the
+    /// regional measures, and with `skip_empty` moves on to the first iteration that samples
+    /// something (fixing the probabilities when that is the schedule's end: returns then the
+    /// pixels above 1). `combination`: forward reprojection is on.
+    pub fn prepare(
+        &mut self,
+        config: &AdaptiveConfig,
+        history: &[PixelStats],
+        width: usize,
+        combination: bool,
+    ) -> Option<u64> {
+        if !config.enabled {
+            return None;
+        }
+        if self.iteration < config.max_spp {
+            // V is read during the schedule only.
+            self.measure_image(config.measure, history, width);
+        }
+        let mut above_one = None;
+        if config.skip_empty {
+            let busy = self.first_busy(config, history, combination);
+            if busy == config.max_spp && self.iteration < config.max_spp {
+                // The rest of the schedule would sample nothing: its end now.
+                above_one = Some(self.fix_probabilities(history, config.max_spp, config.cap));
+            }
+            self.iteration = busy;
+        }
+        above_one
+    }
+
+    /// The frame's decisions (`None` with adaptive sampling off): the schedule at this
+    /// iteration, with `budget` the iterations that fit one frame's samples (not in the frame
+    /// after a move, `after_move`, where every pixel is traced); `seed` is the epoch's.
+    pub fn schedule(
+        &self,
+        config: &AdaptiveConfig,
+        history: &[PixelStats],
+        combination: bool,
+        after_move: bool,
+        seed: u64,
+    ) -> Option<Schedule<'_>> {
+        config.enabled.then(|| {
+            let mut s = Schedule::new(config, self.iteration, combination, seed);
+            s.regional = &self.regional;
+            s.reference = self.reference;
+            if config.budget && !after_move {
+                if s.iteration < s.max_spp {
+                    s.end = self.budget_end(&s, history, history.len() as u64);
+                } else {
+                    s.scale = self.scale;
+                }
+            }
+            s
+        })
+    }
+
+    /// After the frame's accumulation: the schedule moves on to `end` (the end of the
+    /// iterations the frame ran, or the next iteration), fixing the probabilities when it
+    /// reaches `max_spp` (returns then the pixels above 1).
+    pub fn end_frame(
+        &mut self,
+        config: &AdaptiveConfig,
+        history: &[PixelStats],
+        end: Option<u32>,
+    ) -> Option<u64> {
+        let i = self.iteration;
+        let end = end.unwrap_or(i.saturating_add(1));
+        let mut above_one = None;
+        if config.enabled && i < config.max_spp && end >= config.max_spp {
+            above_one = Some(self.fix_probabilities(history, config.max_spp, config.cap));
+        }
+        self.iteration = end;
+        above_one
+    }
+
     /// [`Measure::Absolute`]: sets [`regional`](Self::regional), each pixel's deviation of a
     /// sample over the window of radius [`REGION`] around it (the square root of the mean of
     /// Eq. 11 over the window's pixels with two samples or more; [`Measure::Error`]: divided
@@ -647,6 +750,26 @@ impl Adaptive {
             }
         }
         fits
+    }
+}
+
+impl Stage for Adaptive {
+    fn name(&self) -> &'static str {
+        ADAPTIVE
+    }
+
+    fn views(&self) -> &'static [View] {
+        Self::VIEWS
+    }
+
+    /// The probability (-1 before it is fixed, or when adaptive sampling never ran).
+    fn value(&self, _: &FrameState, _: usize, i: usize) -> Vec3 {
+        Vec3::splat(self.probability.get(i).copied().unwrap_or(-1.0))
+    }
+
+    fn bytes(&self) -> usize {
+        (self.probability.capacity() + self.regional.capacity()) * std::mem::size_of::<f32>()
+            + (self.own.capacity() + self.rows.capacity()) * std::mem::size_of::<(f32, f32)>()
     }
 }
 

@@ -1,424 +1,238 @@
-//! The display pass: one of the pipeline's buffers (the final image, the noisy input, a
-//! G-buffer feature, a statistic) as 8-bit RGBA for the screen or a PNG, tone-mapped where it
-//! is radiance; or as linear values for EXR files.
+//! The display pass and its settings: one of the stages' views (the final image, the noisy
+//! input, a G-buffer feature, a statistic, a technique's state) as 8-bit RGBA for the screen or
+//! a PNG, tone-mapped where it is radiance; or as linear values for EXR files.
+//!
+//! A view belongs to its stage ([`super::stage::Stage::views`]): the stage names it, says how
+//! its values are shown ([`ViewKind`]) and gives its values. This module knows no stage: it
+//! holds the settings ([`DisplayConfig`]), the name of the view shown ([`DisplayMode`]; the
+//! names are checked against the stages' in [`super::views`]), and the colour maps.
+
+use std::borrow::Cow;
 
 use glam::{Vec3, Vec4};
-use pathlight_core::color::{luminance, Srgb8Encoder};
+use pathlight_core::color::Srgb8Encoder;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::config::{DisplayConfig, Tonemap};
+/// The display pass's name (timings).
+pub const DISPLAY: &str = "display";
 
-use super::accumulation::PixelStats;
-use super::gbuffer::GBuffer;
-use super::lighting::LightSample;
-use super::reprojection::Reprojection;
-use super::restir::Reservoir;
-
-/// What is shown.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DisplayMode {
-    /// The image: the accumulated mean radiance over the frames so far, filtered when the
-    /// reconstruction filter (seed 001) is on.
-    #[default]
-    Final,
-    /// The accumulated image before the reconstruction filter (its input light).
-    Accumulated,
-    /// This frame's radiance alone (the pipeline's noisy input).
-    Noisy,
-    /// Accumulated direct light (from emitters straight to the first surface).
-    Direct,
-    /// Accumulated indirect light (everything that bounced more).
-    Indirect,
-    /// Relative standard error of the accumulated mean (luminance), as a heat map 0 to 1.
-    Variance,
-    /// Samples per pixel accumulated, from black (none) to white (the most).
-    Samples,
-    /// G-buffer: base colour at the first hit.
-    Albedo,
-    /// G-buffer: shading normal (x, y, z mapped from [-1, 1] to [0, 1]).
-    Normal,
-    /// G-buffer: depth, near white to far black; the sky black.
-    Depth,
-    /// G-buffer: motion since the previous frame (red: x, green: y; grey is still; 32 pixels
-    /// to full scale).
-    Motion,
-    /// G-buffer: perceptual roughness (grey).
-    Roughness,
-    /// G-buffer: metallic (grey).
-    Metallic,
-    /// Lighting: base colour at the first non-specular vertex after the first hit (seed 001's
-    /// "texture2").
-    BounceAlbedo,
-    /// Lighting: the direction chosen at the first hit (mapped from [-1, 1] to [0, 1]).
-    BounceDirection,
-    /// Adaptive sampling: each pixel's fixed probability P of a sample per frame, as a heat
-    /// map 0 to 1 (dark grey before the schedule fixes it).
-    Probability,
-    /// Reprojection: which pixels kept their history at the last camera move (white: all
-    /// their states, grey: some of the 4, black: none).
-    Reprojected,
-    /// Reprojection: what happened at the last camera move, per pixel: kept (green), newly
-    /// seen (black), occluded (red), view-dependency error (yellow), specular (blue), aliasing
-    /// depth test (magenta).
-    Rejection,
-    /// Lighting: this frame's direct light alone (with ReSTIR, what the reservoirs gave).
-    FrameDirect,
-    /// ReSTIR: the candidates behind each pixel's reservoir (M), as a heat map from 0 to the
-    /// image's largest (dark grey: no reservoir).
-    ReservoirM,
-    /// ReSTIR: each reservoir's contribution weight W, as a heat map of its logarithm over the
-    /// image's range (dark grey: W = 0, no sample or an occluded one).
-    ReservoirWeight,
-    /// Filter: the sample variance of the depth, relative to the depth squared, as a heat map
-    /// 0 to 1 (dark grey when the filter is off).
-    VarianceDepth,
-    /// Filter: the variance of the normal (summed over x, y, z), heat map 0 to 1.
-    VarianceNormal,
-    /// Filter: the variance of the texture (albedo at the first hit), heat map 0 to 1.
-    VarianceTexture,
-    /// Filter: the variance of the first bounce's direction, heat map 0 to 1.
-    VarianceDirection,
-    /// Filter: the variance of texture2, heat map 0 to 1.
-    VarianceTexture2,
-    /// Data-driven filter, `sure`: each pixel's share of its own (unfiltered) light in the
-    /// blend, direct light in red and indirect in green, 0 to 1 (blue where the pixel passed
-    /// through; dark grey when the blend did not run).
-    SureShare,
+/// Tone mapping and the picture shown.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DisplayConfig {
+    /// Multiplier of linear radiance before tone mapping.
+    pub exposure: f32,
+    pub tonemap: Tonemap,
+    /// What the viewer shows and the player writes: a stage's view, by name.
+    pub mode: DisplayMode,
 }
+
+impl Default for DisplayConfig {
+    fn default() -> Self {
+        Self {
+            exposure: 1.0,
+            tonemap: Tonemap::Clamp,
+            mode: DisplayMode::FINAL,
+        }
+    }
+}
+
+/// Linear radiance (after exposure) to display values in [0, 1], then sRGB-encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Tonemap {
+    /// Clamp to [0, 1] (what `pathlight render` writes to PNG).
+    #[default]
+    Clamp,
+    /// The ACES filmic curve (Narkowicz's fit): highlights roll off instead of clipping.
+    Aces,
+}
+
+/// The view shown, by its name (`final`, `normal`, `reservoir-m`, ...): one of the stages'
+/// views ([`super::views::all`]). Parsing (`FromStr`, and a configuration file's
+/// `display.mode`) refuses a name no stage has.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize)]
+#[serde(into = "String")]
+pub struct DisplayMode(Cow<'static, str>);
 
 impl DisplayMode {
-    /// Every mode with its pass, in menu order.
-    pub const ALL: [DisplayMode; 27] = [
-        DisplayMode::Final,
-        DisplayMode::Accumulated,
-        DisplayMode::Noisy,
-        DisplayMode::Direct,
-        DisplayMode::Indirect,
-        DisplayMode::Variance,
-        DisplayMode::Samples,
-        DisplayMode::Albedo,
-        DisplayMode::Normal,
-        DisplayMode::Depth,
-        DisplayMode::Motion,
-        DisplayMode::Roughness,
-        DisplayMode::Metallic,
-        DisplayMode::BounceAlbedo,
-        DisplayMode::BounceDirection,
-        DisplayMode::Probability,
-        DisplayMode::Reprojected,
-        DisplayMode::Rejection,
-        DisplayMode::FrameDirect,
-        DisplayMode::ReservoirM,
-        DisplayMode::ReservoirWeight,
-        DisplayMode::VarianceDepth,
-        DisplayMode::VarianceNormal,
-        DisplayMode::VarianceTexture,
-        DisplayMode::VarianceDirection,
-        DisplayMode::VarianceTexture2,
-        DisplayMode::SureShare,
-    ];
+    /// The image: the accumulated mean radiance, filtered when a reconstruction filter is on.
+    pub const FINAL: DisplayMode = DisplayMode(Cow::Borrowed("final"));
+
+    /// The view named `name` (not checked: see [`super::views::find`]).
+    pub const fn named(name: &'static str) -> Self {
+        Self(Cow::Borrowed(name))
+    }
 
     /// The name in configurations and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            DisplayMode::Final => "final",
-            DisplayMode::Accumulated => "accumulated",
-            DisplayMode::Noisy => "noisy",
-            DisplayMode::Direct => "direct",
-            DisplayMode::Indirect => "indirect",
-            DisplayMode::Variance => "variance",
-            DisplayMode::Samples => "samples",
-            DisplayMode::Albedo => "albedo",
-            DisplayMode::Normal => "normal",
-            DisplayMode::Depth => "depth",
-            DisplayMode::Motion => "motion",
-            DisplayMode::Roughness => "roughness",
-            DisplayMode::Metallic => "metallic",
-            DisplayMode::BounceAlbedo => "bounce-albedo",
-            DisplayMode::BounceDirection => "bounce-direction",
-            DisplayMode::Probability => "probability",
-            DisplayMode::Reprojected => "reprojected",
-            DisplayMode::Rejection => "rejection",
-            DisplayMode::FrameDirect => "frame-direct",
-            DisplayMode::ReservoirM => "reservoir-m",
-            DisplayMode::ReservoirWeight => "reservoir-weight",
-            DisplayMode::VarianceDepth => "variance-depth",
-            DisplayMode::VarianceNormal => "variance-normal",
-            DisplayMode::VarianceTexture => "variance-texture",
-            DisplayMode::VarianceDirection => "variance-direction",
-            DisplayMode::VarianceTexture2 => "variance-texture2",
-            DisplayMode::SureShare => "sure-share",
-        }
-    }
-
-    /// The pass whose buffer the mode shows.
-    pub fn pass(self) -> &'static str {
-        use DisplayMode::*;
-        match self {
-            Accumulated | Direct | Indirect | Variance | Samples | Probability => super::ACCUMULATE,
-            Final | VarianceDepth | VarianceNormal | VarianceTexture | VarianceDirection
-            | VarianceTexture2 | SureShare => super::FILTER,
-            Reprojected | Rejection => super::REPROJECT,
-            Noisy | FrameDirect | BounceAlbedo | BounceDirection => super::LIGHTING,
-            ReservoirM | ReservoirWeight => super::RESTIR,
-            Albedo | Normal | Depth | Motion | Roughness | Metallic => super::PRIMARY,
-        }
-    }
-
-    /// True for radiance, which exposure and tone mapping apply to.
-    pub fn is_radiance(self) -> bool {
-        matches!(
-            self,
-            DisplayMode::Final
-                | DisplayMode::Accumulated
-                | DisplayMode::Noisy
-                | DisplayMode::Direct
-                | DisplayMode::Indirect
-                | DisplayMode::FrameDirect
-        )
+    pub fn name(&self) -> &str {
+        &self.0
     }
 }
 
-impl std::str::FromStr for DisplayMode {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        DisplayMode::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = DisplayMode::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown display mode `{s}`; one of {}", names.join(", "))
-            })
+impl Default for DisplayMode {
+    fn default() -> Self {
+        Self::FINAL
     }
 }
 
-/// The buffers a display mode reads.
-pub struct Sources<'a> {
-    pub gbuffer: &'a GBuffer,
-    pub lighting: &'a [LightSample],
-    pub history: &'a [PixelStats],
-    /// Adaptive sampling's probabilities (empty when it never ran).
-    pub probability: &'a [f32],
-    pub reprojection: &'a Reprojection,
-    /// ReSTIR's reservoirs of the last frame (empty when it never ran).
-    pub reservoirs: &'a [Reservoir],
-    /// The reconstruction filter's output (empty when it is off).
-    pub filtered: &'a [Vec3],
-    /// The feature variances the filter read (empty when it is off): depth, normal, texture,
-    /// direction, texture2.
-    pub feature_variance: &'a [[f32; 5]],
-    /// The data-driven filter's `sure` shares of each pixel's own light, direct and indirect
-    /// (empty when the blend did not run; NaN where the pixel passed through).
-    pub sure_shares: &'a [[f32; 2]],
-}
-
-impl Sources<'_> {
-    /// The linear value of `mode` at pixel `i`: radiance, the feature itself (normal and
-    /// direction in [-1, 1], depth in scene units with the sky infinite, motion in pixels as
-    /// (x, y, 0), albedo), the variance of the accumulated mean, the sample count, the
-    /// probability (-1 before it is fixed), the fraction of states reprojected, or the
-    /// [`Fate`](super::reprojection::Fate) as a number.
-    pub fn value(&self, mode: DisplayMode, i: usize) -> Vec3 {
-        let g = &self.gbuffer.pixels[i];
-        let l = &self.lighting[i];
-        let h = &self.history[i];
-        let feature_variance = |k: usize| {
-            let v = self.feature_variance.get(i).map_or(-1.0, |v| v[k]);
-            if k == 0 && v >= 0.0 {
-                // Relative to the depth squared, as the filter reads it.
-                Vec3::splat(v / (g.depth * g.depth).max(1e-12))
-            } else {
-                Vec3::splat(v)
-            }
-        };
-        match mode {
-            DisplayMode::Final => self.filtered.get(i).copied().unwrap_or_else(|| h.mean()),
-            DisplayMode::Accumulated => h.mean(),
-            DisplayMode::Noisy => l.stats.mean(),
-            DisplayMode::Direct => h.direct.mean,
-            DisplayMode::Indirect => h.indirect.mean,
-            DisplayMode::Variance => h.variance() / h.n.max(1) as f32,
-            DisplayMode::Samples => Vec3::splat(h.n as f32),
-            DisplayMode::Albedo => g.albedo,
-            DisplayMode::Normal => g.normal,
-            DisplayMode::Depth => Vec3::splat(g.depth),
-            DisplayMode::Motion => g.motion.extend(0.0),
-            DisplayMode::Roughness => Vec3::splat(g.roughness),
-            DisplayMode::Metallic => Vec3::splat(g.metallic),
-            DisplayMode::BounceAlbedo => l.bounce.albedo,
-            DisplayMode::BounceDirection => l.bounce.direction,
-            DisplayMode::Probability => {
-                Vec3::splat(self.probability.get(i).copied().unwrap_or(-1.0))
-            }
-            DisplayMode::Reprojected => {
-                let r = self.reprojection;
-                let kept = r.kept.get(i).copied().unwrap_or(0);
-                Vec3::splat(kept as f32 / r.samples.max(1) as f32)
-            }
-            DisplayMode::Rejection => Vec3::splat(self.reprojection.fate(i) as u8 as f32),
-            DisplayMode::FrameDirect => l.stats.direct.mean,
-            DisplayMode::ReservoirM => Vec3::splat(self.reservoirs.get(i).map_or(0.0, |r| r.m)),
-            DisplayMode::ReservoirWeight => {
-                Vec3::splat(self.reservoirs.get(i).map_or(0.0, |r| r.weight))
-            }
-            DisplayMode::VarianceDepth => feature_variance(0),
-            DisplayMode::VarianceNormal => feature_variance(1),
-            DisplayMode::VarianceTexture => feature_variance(2),
-            DisplayMode::VarianceDirection => feature_variance(3),
-            DisplayMode::VarianceTexture2 => feature_variance(4),
-            // -1 when the blend did not run.
-            DisplayMode::SureShare => self
-                .sure_shares
-                .get(i)
-                .map_or(Vec3::splat(-1.0), |s| Vec3::new(s[0], s[1], 0.0)),
-        }
-    }
-
-    /// The whole image of `mode` as linear values (see [`value`](Self::value)).
-    pub fn linear(&self, mode: DisplayMode) -> Vec<Vec3> {
-        (0..self.gbuffer.pixels.len())
-            .into_par_iter()
-            .map(|i| self.value(mode, i))
-            .collect()
-    }
-
-    /// The image of `mode` as 8-bit RGBA (alpha 255) into `out`: radiance after exposure and
-    /// tone mapping, sRGB-encoded; features mapped to [0, 1] as each mode says.
-    pub fn rgba8(&self, mode: DisplayMode, display: &DisplayConfig, out: &mut Vec<u8>) {
-        let n = self.gbuffer.pixels.len();
-        out.resize(n * 4, 0);
-        // Image-wide scales: the farthest finite depth, the most samples.
-        let (max_depth, max_n) = match mode {
-            DisplayMode::Depth => (
-                self.gbuffer
-                    .pixels
-                    .par_iter()
-                    .map(|g| g.depth)
-                    .filter(|d| d.is_finite())
-                    .reduce(|| 0.0, f32::max),
-                0,
-            ),
-            DisplayMode::Samples => (0.0, self.history.par_iter().map(|h| h.n).max().unwrap_or(0)),
-            _ => (0.0, 0),
-        };
-        let srgb = Srgb8Encoder::new();
-        let radiance = |v: Vec3| srgb.encode3(tonemap(v * display.exposure, display.tonemap));
-        match mode {
-            // The usual mode, with its own loop.
-            DisplayMode::Final if self.filtered.is_empty() => {
-                fill(out, |i| radiance(self.history[i].mean()))
-            }
-            m if m.is_radiance() => fill(out, |i| radiance(self.value(mode, i))),
-            DisplayMode::Albedo | DisplayMode::BounceAlbedo => {
-                fill(out, |i| srgb.encode3(self.value(mode, i)))
-            }
-            DisplayMode::Normal | DisplayMode::BounceDirection => fill(out, |i| {
-                let v = self.value(mode, i);
-                unorm8(if v == Vec3::ZERO {
-                    Vec3::ZERO
-                } else {
-                    v * 0.5 + 0.5
-                })
-            }),
-            DisplayMode::Depth => fill(out, |i| {
-                let d = self.value(mode, i).x;
-                unorm8(Vec3::splat(if d.is_finite() && max_depth > 0.0 {
-                    1.0 - 0.9 * d / max_depth
-                } else {
-                    0.0
-                }))
-            }),
-            DisplayMode::Motion => fill(out, |i| {
-                let v = self.value(mode, i);
-                unorm8(Vec3::new(0.5 + v.x / 32.0, 0.5 + v.y / 32.0, 0.5))
-            }),
-            DisplayMode::Variance => fill(out, |i| {
-                let v = self.value(mode, i);
-                let relative = luminance(v).max(0.0).sqrt()
-                    / (luminance(self.history[i].mean()).max(0.0) + 1e-3);
-                viridis(relative)
-            }),
-            DisplayMode::Samples => fill(out, |i| {
-                unorm8(Vec3::splat(self.value(mode, i).x / max_n.max(1) as f32))
-            }),
-            DisplayMode::Probability => fill(out, |i| {
-                let p = self.value(mode, i).x;
-                if p < 0.0 {
-                    [40, 40, 40]
-                } else {
-                    viridis(p)
-                }
-            }),
-            DisplayMode::Rejection => fill(out, |i| self.reprojection.fate(i).colour()),
-            DisplayMode::VarianceDepth
-            | DisplayMode::VarianceNormal
-            | DisplayMode::VarianceTexture
-            | DisplayMode::VarianceDirection
-            | DisplayMode::VarianceTexture2 => fill(out, |i| {
-                let v = self.value(mode, i).x;
-                if v < 0.0 {
-                    [40, 40, 40]
-                } else {
-                    viridis(v.min(1.0))
-                }
-            }),
-            DisplayMode::SureShare => fill(out, |i| {
-                let v = self.value(mode, i);
-                if v.x < 0.0 {
-                    [40, 40, 40]
-                } else if v.x.is_nan() {
-                    [0, 0, 160]
-                } else {
-                    unorm8(v)
-                }
-            }),
-            DisplayMode::ReservoirM => {
-                let max = self
-                    .reservoirs
-                    .par_iter()
-                    .map(|r| r.m)
-                    .reduce(|| 0.0, f32::max);
-                fill(out, |i| {
-                    let m = self.value(mode, i).x;
-                    if m > 0.0 {
-                        viridis(m / max)
-                    } else {
-                        [40, 40, 40]
-                    }
-                })
-            }
-            DisplayMode::ReservoirWeight => {
-                let (lo, hi) = self
-                    .reservoirs
-                    .par_iter()
-                    .filter(|r| r.weight > 0.0 && r.weight.is_finite())
-                    .map(|r| (r.weight.ln(), r.weight.ln()))
-                    .reduce(
-                        || (f32::INFINITY, f32::NEG_INFINITY),
-                        |a, b| (a.0.min(b.0), a.1.max(b.1)),
-                    );
-                fill(out, |i| {
-                    let w = self.value(mode, i).x;
-                    if w > 0.0 && w.is_finite() {
-                        viridis((w.ln() - lo) / (hi - lo).max(1e-6))
-                    } else {
-                        [40, 40, 40]
-                    }
-                })
-            }
-            _ => fill(out, |i| unorm8(self.value(mode, i))),
-        }
+impl From<DisplayMode> for String {
+    fn from(m: DisplayMode) -> String {
+        m.0.into_owned()
     }
 }
+
+impl std::fmt::Display for DisplayMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// One of a stage's named images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct View {
+    /// Its name ([`DisplayMode`]).
+    pub name: &'static str,
+    /// What it shows, in a line (the viewer's tooltip, `--display`'s help).
+    pub about: &'static str,
+    pub kind: ViewKind,
+}
+
+/// How a view's linear values become colours.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ViewKind {
+    /// Radiance: exposure, tone mapping, sRGB encoding.
+    Radiance,
+    /// A colour (an albedo), sRGB-encoded.
+    Colour,
+    /// A direction in [-1, 1] mapped to [0, 1] (zero stays black).
+    Direction,
+    /// Values in [0, 1] as they are, clamped.
+    Unit,
+    /// A depth: near white to far black over the image's farthest finite depth; infinite (the
+    /// sky) black.
+    Depth,
+    /// Motion in pixels (x, y): grey is still, 32 pixels to full scale.
+    Motion,
+    /// A count: black (none) to white (the image's most).
+    Count,
+    /// A heat map of [0, 1] (clamped); negative is "none" (dark grey).
+    Heat,
+    /// A heat map from 0 to the image's largest value; 0 and below dark grey.
+    HeatOfLargest,
+    /// A heat map of the logarithm over the image's range of positive finite values; others
+    /// dark grey.
+    HeatOfLog,
+    /// Coloured by its stage ([`super::stage::Stage::paint`]).
+    Painted,
+}
+
+/// The colour of "nothing here" in heat maps.
+pub const NONE: [u8; 3] = [40, 40, 40];
 
 /// Pixels per parallel task of the display pass.
 const CHUNK: usize = 1024;
 
+/// The image of a view of kind `kind` over `n` pixels as 8-bit RGBA (alpha 255) into `out`:
+/// `value(i)` is the view's linear value at pixel `i`, `paint(i)` its colour when the kind is
+/// [`ViewKind::Painted`].
+pub fn encode(
+    kind: ViewKind,
+    n: usize,
+    value: impl Fn(usize) -> Vec3 + Sync,
+    paint: impl Fn(usize) -> [u8; 3] + Sync,
+    display: &DisplayConfig,
+    out: &mut Vec<u8>,
+) {
+    out.resize(n * 4, 0);
+    // Image-wide scales.
+    let largest = |keep: fn(f32) -> bool| {
+        (0..n)
+            .into_par_iter()
+            .map(|i| value(i).x)
+            .filter(|&v| keep(v))
+            .reduce(|| 0.0, f32::max)
+    };
+    let srgb = Srgb8Encoder::new();
+    match kind {
+        ViewKind::Radiance => fill(out, |i| {
+            srgb.encode3(tonemap(value(i) * display.exposure, display.tonemap))
+        }),
+        ViewKind::Colour => fill(out, |i| srgb.encode3(value(i))),
+        ViewKind::Direction => fill(out, |i| {
+            let v = value(i);
+            unorm8(if v == Vec3::ZERO {
+                Vec3::ZERO
+            } else {
+                v * 0.5 + 0.5
+            })
+        }),
+        ViewKind::Unit => fill(out, |i| unorm8(value(i))),
+        ViewKind::Depth => {
+            let far = largest(f32::is_finite);
+            fill(out, |i| {
+                let d = value(i).x;
+                unorm8(Vec3::splat(if d.is_finite() && far > 0.0 {
+                    1.0 - 0.9 * d / far
+                } else {
+                    0.0
+                }))
+            })
+        }
+        ViewKind::Motion => fill(out, |i| {
+            let v = value(i);
+            unorm8(Vec3::new(0.5 + v.x / 32.0, 0.5 + v.y / 32.0, 0.5))
+        }),
+        ViewKind::Count => {
+            let most = largest(|_| true);
+            fill(out, |i| unorm8(Vec3::splat(value(i).x / most.max(1.0))))
+        }
+        ViewKind::Heat => fill(out, |i| {
+            let v = value(i).x;
+            if v < 0.0 {
+                NONE
+            } else {
+                viridis(v.min(1.0))
+            }
+        }),
+        ViewKind::HeatOfLargest => {
+            let most = largest(|_| true);
+            fill(out, |i| {
+                let v = value(i).x;
+                if v > 0.0 {
+                    viridis(v / most)
+                } else {
+                    NONE
+                }
+            })
+        }
+        ViewKind::HeatOfLog => {
+            let positive = |v: f32| v > 0.0 && v.is_finite();
+            let (lo, hi) = (0..n)
+                .into_par_iter()
+                .map(|i| value(i).x)
+                .filter(|&v| positive(v))
+                .map(|v| (v.ln(), v.ln()))
+                .reduce(
+                    || (f32::INFINITY, f32::NEG_INFINITY),
+                    |a, b| (a.0.min(b.0), a.1.max(b.1)),
+                );
+            fill(out, |i| {
+                let v = value(i).x;
+                if positive(v) {
+                    viridis((v.ln() - lo) / (hi - lo).max(1e-6))
+                } else {
+                    NONE
+                }
+            })
+        }
+        ViewKind::Painted => fill(out, paint),
+    }
+}
+
 /// Writes `rgb(i)` and alpha 255 to each RGBA pixel `i` of `out`, in parallel.
-fn fill(out: &mut [u8], rgb: impl Fn(usize) -> [u8; 3] + Sync) {
+pub fn fill(out: &mut [u8], rgb: impl Fn(usize) -> [u8; 3] + Sync) {
     out.par_chunks_mut(4 * CHUNK)
         .enumerate()
         .for_each(|(c, chunk)| {
@@ -430,7 +244,7 @@ fn fill(out: &mut [u8], rgb: impl Fn(usize) -> [u8; 3] + Sync) {
 }
 
 /// A value in [0, 1] (clamped) to 8 bits, without encoding.
-fn unorm8(v: Vec3) -> [u8; 3] {
+pub fn unorm8(v: Vec3) -> [u8; 3] {
     v.to_array()
         .map(|c| (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
 }
@@ -478,19 +292,6 @@ pub fn viridis(t: f32) -> [u8; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn names_parse_back() {
-        for m in DisplayMode::ALL {
-            assert_eq!(m.name().parse::<DisplayMode>().unwrap(), m);
-            let json = serde_json::to_string(&m).unwrap();
-            assert_eq!(json, format!("\"{}\"", m.name()));
-        }
-        assert!("nope"
-            .parse::<DisplayMode>()
-            .unwrap_err()
-            .contains("bounce-albedo"));
-    }
 
     #[test]
     fn tonemaps_stay_in_range_and_keep_black() {

@@ -80,8 +80,14 @@ use pathlight_denoise::{
 use rayon::prelude::*;
 
 use super::accumulation::PixelStats;
+use super::display::{unorm8, View, ViewKind, NONE};
 use super::gbuffer::{GBuffer, GPixel};
 use super::lighting::LightSample;
+use super::stage::Stage;
+use super::state::FrameState;
+
+/// Seed 001's reconstruction filter's pass (timings, the menu's heading of its views).
+pub const FILTER: &str = "filter";
 
 /// Running means and sums of squared deviations (summed over components) of one pixel's
 /// features.
@@ -206,9 +212,179 @@ pub struct Filter {
     /// `refresh_growth`: per pixel, the image at the last refresh less its shares of the
     /// pixel's own direct and indirect light then, and those shares ([`Self::keep_refresh`]).
     kept: Vec<(Vec3, [f32; 2])>,
+    /// An epoch's first frame waits to be gathered until a second one comes (a camera that
+    /// moves at every frame then gathers nothing): the epoch whose first frame waits in the
+    /// frame's own buffers.
+    waiting: Option<u64>,
+    /// The G-buffer and lighting of the frame that waits, once the next frame traces into
+    /// the others.
+    spare: Spare,
+    /// When the data-driven filter last filtered the accumulated image (`refresh_growth`).
+    filtered: Option<Filtered>,
+}
+
+/// The epoch, its frames and the filter's configuration when the data-driven filter last
+/// filtered the accumulated image.
+struct Filtered {
+    epoch: u64,
+    frames: u32,
+    config: FilterConfig,
+}
+
+/// The G-buffer and lighting of a frame whose features wait to be gathered, and its epoch
+/// (none once gathered or dropped).
+#[derive(Default)]
+struct Spare {
+    gbuffer: GBuffer,
+    lighting: Vec<LightSample>,
+    epoch: Option<u64>,
 }
 
 impl Filter {
+    pub const VIEWS: &'static [View] = &[
+        View {
+            name: "final",
+            about: "the image: the accumulated mean radiance over the frames so far, filtered \
+                    when the reconstruction filter (seed 001) is on",
+            kind: ViewKind::Radiance,
+        },
+        View {
+            name: "variance-depth",
+            about: "the sample variance of the depth, relative to the depth squared, as a \
+                    heat map 0 to 1 (dark grey when the filter is off)",
+            kind: ViewKind::Heat,
+        },
+        View {
+            name: "variance-normal",
+            about: "the variance of the normal (summed over x, y, z), heat map 0 to 1",
+            kind: ViewKind::Heat,
+        },
+        View {
+            name: "variance-texture",
+            about: "the variance of the texture (albedo at the first hit), heat map 0 to 1",
+            kind: ViewKind::Heat,
+        },
+        View {
+            name: "variance-direction",
+            about: "the variance of the first bounce's direction, heat map 0 to 1",
+            kind: ViewKind::Heat,
+        },
+        View {
+            name: "variance-texture2",
+            about: "the variance of texture2, heat map 0 to 1",
+            kind: ViewKind::Heat,
+        },
+        View {
+            name: "sure-share",
+            about: "data-driven filter, `sure`: each pixel's share of its own (unfiltered) \
+                    light in the blend, direct light in red and indirect in green, 0 to 1 \
+                    (blue where the pixel passed through; dark grey when the blend did not \
+                    run)",
+            kind: ViewKind::Painted,
+        },
+    ];
+
+    /// Before the frame's tracing, in a frame that traces every pixel afresh (`every_pixel`):
+    /// if the epoch's first frame waits to be gathered in the frame's buffers, they become the
+    /// spare ones and the frame traces into the others.
+    pub fn before_trace(
+        &mut self,
+        gbuffer: &mut GBuffer,
+        lighting: &mut Vec<LightSample>,
+        every_pixel: bool,
+    ) {
+        if !every_pixel {
+            return;
+        }
+        if let Some(epoch) = self.waiting.take() {
+            let spare = &mut self.spare;
+            std::mem::swap(gbuffer, &mut spare.gbuffer);
+            std::mem::swap(lighting, &mut spare.lighting);
+            spare.epoch = Some(epoch);
+            gbuffer.resize(spare.gbuffer.width, spare.gbuffer.height);
+            lighting.resize(spare.lighting.len(), LightSample::default());
+        }
+    }
+
+    /// The filter pass after the frame (`traced`: it traced samples; `every_pixel`: every
+    /// pixel afresh, from one sample index), with `config`: gathers the features, and runs the
+    /// method in force after the epoch's frames into [`image`](Self::image), or forgets the
+    /// output when the filter is off.
+    pub fn pass(
+        &mut self,
+        config: &FilterConfig,
+        frame: &mut FrameState,
+        traced: bool,
+        every_pixel: bool,
+    ) {
+        // (`frames` counts this one: the frames of a still camera.)
+        let (epoch, frames) = (frame.epoch, frame.frames);
+        let method = config.method_after(frames);
+        if !method.in_frame() {
+            if !self.image.is_empty() {
+                self.clear();
+                (self.waiting, self.spare.epoch) = (None, None);
+            }
+            return;
+        }
+        let t = std::time::Instant::now();
+        let svgf = method == Method::Svgf;
+        let data_driven = method == Method::DataDriven;
+        // An epoch's first frame waits to be gathered until a second one comes (a camera
+        // that moves at every frame never gathers): SVGF does not read the statistics, and
+        // the data-driven filter reads that frame's features from the frame itself.
+        let gathers = traced && config.gathers_features();
+        let waits = gathers && frames == 1 && every_pixel;
+        if gathers {
+            // The epoch's first frame, if it waited, before this one (the statistics are
+            // then those of gathering every frame, bit for bit).
+            if self.spare.epoch.take() == Some(epoch) {
+                let spare = std::mem::take(&mut self.spare);
+                self.gather(epoch, &spare.gbuffer, &spare.lighting);
+                self.spare = spare;
+            }
+            if waits {
+                self.waiting = Some(epoch);
+            } else {
+                self.gather(epoch, &frame.gbuffer, &frame.lighting);
+            }
+        }
+        // With `refresh_growth`, a still view's data-driven image stays as it was until the
+        // frames have grown by that factor.
+        let stays = data_driven
+            && !self.image.is_empty()
+            && self.filtered.as_ref().is_some_and(|f| {
+                f.epoch == epoch
+                    && f.config == *config
+                    && (frames as f32) < f.frames as f32 * config.refresh_growth
+            });
+        let run = (traced || !svgf).then(|| {
+            if stays {
+                self.refresh_own_light(&frame.history);
+                return Ok(());
+            }
+            self.filtered = data_driven.then(|| Filtered {
+                epoch,
+                frames,
+                config: config.clone(),
+            });
+            self.run(
+                method,
+                config,
+                &frame.history,
+                &frame.gbuffer,
+                &frame.lighting,
+                !waits,
+            )
+        });
+        if let Some(Err(_)) = run {
+            // Not reached: the configuration was validated and the buffers are the frame's.
+            // Show the unfiltered image rather than a stale one.
+            self.clear();
+        }
+        frame.times.since(FILTER, t);
+    }
+
     /// Adds the features of the pixels this frame traced (`lighting` holds samples) to the
     /// statistics of `epoch`, starting them afresh for a new epoch.
     pub fn gather(&mut self, epoch: u64, gbuffer: &GBuffer, lighting: &[LightSample]) {
@@ -516,10 +692,13 @@ impl Filter {
         self.epoch = None;
     }
 
-    /// Bytes of the per-pixel buffers.
+    /// Bytes of the per-pixel buffers (with the spare G-buffer and lighting of a frame that
+    /// waits to be gathered).
     pub fn bytes(&self) -> usize {
         use std::mem::size_of;
-        self.stats.capacity() * size_of::<FeatureStats>()
+        self.spare.gbuffer.pixels.capacity() * size_of::<GPixel>()
+            + self.spare.lighting.capacity() * size_of::<LightSample>()
+            + self.stats.capacity() * size_of::<FeatureStats>()
             + (self.direct.capacity()
                 + self.indirect.capacity()
                 + self.normal.capacity()
@@ -532,6 +711,59 @@ impl Filter {
             + self.coverage.capacity() * size_of::<(f32, Vec3)>()
             + self.variance.capacity() * size_of::<[f32; 5]>()
             + self.kept.capacity() * size_of::<(Vec3, [f32; 2])>()
+    }
+}
+
+impl Stage for Filter {
+    fn name(&self) -> &'static str {
+        FILTER
+    }
+
+    fn views(&self) -> &'static [View] {
+        Self::VIEWS
+    }
+
+    /// `final`: the filtered image, or the history's mean where the filter is off; the
+    /// feature variances (the depth's relative to the depth squared; -1 where the filter is
+    /// off); `sure-share`: the shares (-1 where the blend did not run, NaN where the pixel
+    /// passed through).
+    fn value(&self, frame: &FrameState, view: usize, i: usize) -> Vec3 {
+        match view {
+            0 => self
+                .image
+                .get(i)
+                .copied()
+                .unwrap_or_else(|| frame.history[i].mean()),
+            1..=5 => {
+                let k = view - 1;
+                let v = self.variance.get(i).map_or(-1.0, |v| v[k]);
+                if k == 0 && v >= 0.0 {
+                    let depth = frame.gbuffer.pixels[i].depth;
+                    Vec3::splat(v / (depth * depth).max(1e-12))
+                } else {
+                    Vec3::splat(v)
+                }
+            }
+            _ => self
+                .shares()
+                .get(i)
+                .map_or(Vec3::splat(-1.0), |s| Vec3::new(s[0], s[1], 0.0)),
+        }
+    }
+
+    fn paint(&self, frame: &FrameState, view: usize, i: usize) -> [u8; 3] {
+        let v = self.value(frame, view, i);
+        if v.x < 0.0 {
+            NONE
+        } else if v.x.is_nan() {
+            [0, 0, 160]
+        } else {
+            unorm8(v)
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        Filter::bytes(self)
     }
 }
 

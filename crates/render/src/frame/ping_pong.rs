@@ -1,6 +1,7 @@
 //! A buffer and its twin: a temporal technique reads last frame's state while it writes this
-//! frame's (kajiya's `PingPongTemporalResource`). Forward reprojection uses it for its
-//! per-pixel states; later techniques' histories (filters' moments, reservoirs) fit it too.
+//! frame's (kajiya's `PingPongTemporalResource`). Every history the frame's stages keep
+//! across frames is one: forward reprojection's per-pixel states, ReSTIR's reservoirs and
+//! receivers. (SVGF's history lives in the filter crate, in its own planes.)
 
 /// Two buffers of one kind: `current` is this frame's, `previous` last frame's.
 #[derive(Debug, Clone, Default)]

@@ -20,9 +20,15 @@
 //! ```text
 //! reproject   states, previous camera, camera, scene -> states in the new view, history,
 //!             probabilities (adaptive), fates
+//! repair      states, G-buffer, lighting (fresh_spp)   -> lighting (the samples pixels
+//!                                                       lack, merged; [`Repair`])
 //! accumulate  states, G-buffer, lighting             -> states, history (aliasing test on
 //!             the frame after a move)
 //! ```
+//! Its rule at a new epoch ([`Reprojection::start_epoch`]): after a change of the camera alone
+//! (in a pipeline that accumulates, at the same size and state count) the reprojection pass
+//! carries the states, the history and adaptive sampling's probabilities into the new view;
+//! after any other change the states start afresh. Its views: `reprojected` and `rejection`.
 //! `reproject` runs at the first frame after a camera move (any other change starts afresh).
 //! Each state is projected with the new camera and kept only if it passes, in this order:
 //! 1. the screen bounds;
@@ -118,14 +124,21 @@ use crate::bsdf::microfacet::Ndf;
 use crate::bsdf::{Microfacet, DELTA_ALPHA};
 use crate::camera::Camera;
 use crate::error::ConfigError;
-use crate::path::Bounce;
+use crate::path::{Bounce, PathTracer};
 use crate::world::World;
 
 use super::accumulation::PixelStats;
 use super::adaptive::NO_PROBABILITY;
-use super::gbuffer::GPixel;
+use super::display::{View, ViewKind};
+use super::gbuffer::{GBuffer, GPixel};
 use super::lighting::LightSample;
 use super::ping_pong::PingPong;
+use super::stage::Stage;
+use super::state::{Change, FrameState};
+use super::trace::{self, Plan};
+
+/// The reprojection pass's name (timings, the menu's heading of its views).
+pub const REPROJECT: &str = "reproject";
 
 /// Settings of forward reprojection (`[frame.reprojection]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -608,6 +621,11 @@ pub struct Reprojection {
     probability: Vec<f32>,
     /// The states hold this view's samples (false after the technique was off).
     pub valid: bool,
+    /// This frame follows a reprojection: its accumulation runs the aliasing test.
+    pub after_move: bool,
+    /// This epoch began with a reprojection (its pixels without history are holes).
+    pub carried: bool,
+    repair: Repair,
 }
 
 const NO_CLAIM: u64 = u64::MAX;
@@ -656,6 +674,128 @@ fn inside(plane: &Plane, pixels: &[GPixel], t: usize, w: usize, tolerance: f32) 
 }
 
 impl Reprojection {
+    pub const VIEWS: &'static [View] = &[
+        View {
+            name: "reprojected",
+            about: "which pixels kept their history at the last camera move (white: all their \
+                    states, grey: some of the 4, black: none)",
+            kind: ViewKind::Unit,
+        },
+        View {
+            name: "rejection",
+            about: "what happened at the last camera move, per pixel: kept (green), newly seen \
+                    (black), occluded (red), view-dependency error (yellow), specular (blue), \
+                    mixed (orange), aliasing depth test (magenta)",
+            kind: ViewKind::Painted,
+        },
+    ];
+
+    /// At a new epoch, after `change` (with seed 000's techniques on; `resized`: the frame's
+    /// buffers changed size): after a move of the camera alone, from `previous` to the frame's
+    /// camera, the reprojection pass carries the states, the history and adaptive sampling's
+    /// `probability` into the new view (returns what it did; the pass's time is the frame's);
+    /// otherwise the states start afresh (or are marked stale with the technique off).
+    #[allow(clippy::too_many_arguments)]
+    pub fn start_epoch(
+        &mut self,
+        world: &World,
+        config: &ReprojectionConfig,
+        accumulate: bool,
+        change: Change,
+        resized: bool,
+        previous: Option<&Camera>,
+        frame: &mut FrameState,
+        probability: &mut [f32],
+    ) -> Option<ReprojectionReport> {
+        let t = std::time::Instant::now();
+        let n = frame.history.len();
+        let k = config.samples as usize;
+        self.after_move = false;
+        self.carried = false;
+        if !config.enabled {
+            self.valid = false;
+            return None;
+        }
+        let carry = accumulate
+            && change == Change::Camera
+            && self.valid
+            && self.samples == k
+            && !resized
+            && probability.len() == n;
+        let (Some(previous), Some(camera), true) = (previous, frame.camera.as_ref(), carry) else {
+            self.reset(n, k);
+            return None;
+        };
+        let report = self.reproject(
+            world,
+            previous,
+            camera,
+            frame.width,
+            config,
+            &mut frame.history,
+            probability,
+        );
+        (self.after_move, self.carried) = (true, true);
+        frame.times.since(REPROJECT, t);
+        Some(report)
+    }
+
+    /// With `fresh_spp`, between the lighting and accumulation passes of an epoch that began
+    /// with a move: traces the samples pixels lack ([`Repair`]); returns the rays traced.
+    pub fn repair(
+        &mut self,
+        config: &ReprojectionConfig,
+        frame: &mut FrameState,
+        tracer: &PathTracer,
+    ) -> u64 {
+        if !(config.enabled && self.carried && config.fresh_spp > 0) {
+            return 0;
+        }
+        let mut repair = std::mem::take(&mut self.repair);
+        let rays = repair.run(
+            self,
+            &frame.history,
+            &mut frame.lighting,
+            &frame.gbuffer,
+            config.fresh_spp,
+            config.depth_tolerance,
+            self.after_move,
+            frame.previous_camera.as_ref(),
+            tracer,
+        );
+        self.repair = repair;
+        rays
+    }
+
+    /// The accumulation pass with `config` over the frame: the frame's samples into the
+    /// states and the history (the aliasing test on the frame after a move, whose `report`
+    /// counts what it dropped); ends the frame after a move.
+    pub fn accumulate_frame(
+        &mut self,
+        world: &World,
+        config: &ReprojectionConfig,
+        frame: &mut FrameState,
+        probability: &mut [f32],
+        report: Option<&mut ReprojectionReport>,
+    ) {
+        let camera = frame.camera.as_ref().expect("a frame's camera");
+        let dropped = self.accumulate(
+            world,
+            camera,
+            &frame.gbuffer,
+            &frame.lighting,
+            config.depth_tolerance,
+            self.after_move,
+            &mut frame.history,
+            probability,
+        );
+        if let Some(r) = report {
+            r.aliasing = dropped;
+            r.kept -= dropped;
+        }
+        self.after_move = false;
+    }
+
     /// Empties every state, for `pixels` pixels of `samples` states.
     pub fn reset(&mut self, pixels: usize, samples: usize) {
         self.samples = samples;
@@ -673,9 +813,10 @@ impl Reprojection {
         self.valid = true;
     }
 
-    /// Bytes held (states, claims, marks, fates, scratch).
+    /// Bytes held (states, claims, marks, fates, scratch, the repair's buffers).
     pub fn bytes(&self) -> usize {
-        self.slots.bytes()
+        self.repair.bytes()
+            + self.slots.bytes()
             + self.claims.capacity() * 8
             + self.marks.capacity()
             + self.fates.capacity()
@@ -698,9 +839,28 @@ impl Reprojection {
         history: &mut [PixelStats],
         probability: &mut [f32],
     ) -> ReprojectionReport {
+        let height = history.len() / (width as usize).max(1);
+        let mut report = self.claim(world, from, to, width as usize, height, config);
+        let kept_states = self.take_claims(history, probability);
+        self.slots.swap();
+        report.collisions = report.kept - kept_states;
+        report.kept = kept_states;
+        report
+    }
+
+    /// The reprojection pass's first half: every state seen by `from` projected into the
+    /// view of `to` (`w` x `h` pixels) and checked; a survivor claims its target (the
+    /// nearest wins), the others mark it with their fate. Returns the counts.
+    fn claim(
+        &self,
+        world: &World,
+        from: &Camera,
+        to: &Camera,
+        w: usize,
+        h: usize,
+        config: &ReprojectionConfig,
+    ) -> ReprojectionReport {
         let k = self.samples;
-        let w = width as usize;
-        let h = history.len() / w.max(1);
         let (eye_from, eye_to) = (from.position(), to.position());
         let (claims, marks) = (&self.claims, &self.marks);
         let mark = |t: usize, fate: Fate| {
@@ -711,8 +871,7 @@ impl Reprojection {
         // then a claim on the target (nearest wins).
         let tolerance = config.occlusion_tolerance;
         let trace_rays = config.occlusion_rays && eye_from != eye_to;
-        let mut report = self
-            .slots
+        self.slots
             .current
             .par_chunks(CHUNK)
             .enumerate()
@@ -795,15 +954,20 @@ impl Reprojection {
                     r
                 },
             )
-            .reduce(ReprojectionReport::default, ReprojectionReport::add);
+            .reduce(ReprojectionReport::default, ReprojectionReport::add)
+    }
 
+    /// The reprojection pass's second half: each target takes its winning states (into the
+    /// scratch buffer), rebuilds its `history` from them and takes the largest `probability`
+    /// they bring. Returns the states kept.
+    fn take_claims(&mut self, history: &mut [PixelStats], probability: &mut [f32]) -> u64 {
+        let k = self.samples;
         // Each target takes its winning states, and the largest probability they bring. The
         // claims and marks are this pass's alone now: plain loads and stores, not locked swaps.
         self.probability.clear();
         self.probability.extend_from_slice(probability);
         let (source, before) = (&self.slots.current, &self.probability);
-        let kept_states: u64 = self
-            .slots
+        self.slots
             .previous
             .par_chunks_mut(k * CHUNK)
             .zip(self.claims.par_chunks_mut(k * CHUNK))
@@ -850,11 +1014,7 @@ impl Reprojection {
                     count
                 },
             )
-            .sum();
-        self.slots.swap();
-        report.collisions = report.kept - kept_states;
-        report.kept = kept_states;
-        report
+            .sum()
     }
 }
 
@@ -1091,6 +1251,146 @@ fn occlusion_ray(eye: Vec3, slot: &Slot, tolerance: f32) -> (Ray, f32) {
     let d = slot.point - eye;
     let ray = Ray::segment(eye, d / distance, 0.0, distance * (1.0 - tolerance));
     (ray, distance)
+}
+
+/// Reprojection with `fresh_spp`, between the lighting and accumulation passes: a pixel
+/// sampled this frame (or any pixel in the frame of a move) whose states the accumulation
+/// pass will drop (the aliasing test after a
+/// move, a carried state its new sample disagrees with) would be left with this frame's
+/// samples alone, one where a hole takes `fresh_spp` (the lighting pass counted the states
+/// before the test, which needs the neighbours' G-buffer pixels). This pass traces the
+/// samples such pixels lack and merges them into their lighting, so that they show
+/// `fresh_spp` samples in this frame rather than in the next.
+#[derive(Debug, Default)]
+pub struct Repair {
+    /// Samples each pixel lacks (0: none).
+    need: Vec<u32>,
+    gbuffer: GBuffer,
+    lighting: Vec<LightSample>,
+}
+
+impl Repair {
+    /// Counts the missing samples, traces them and merges them into `lighting`; returns the
+    /// rays traced.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        reprojection: &Reprojection,
+        history: &[PixelStats],
+        lighting: &mut [LightSample],
+        gbuffer: &GBuffer,
+        fresh: u32,
+        tolerance: f32,
+        after_move: bool,
+        previous: Option<&Camera>,
+        tracer: &PathTracer,
+    ) -> u64 {
+        let w = gbuffer.width.max(1) as usize;
+        self.need.resize(lighting.len(), 0);
+        let missing: u64 = self
+            .need
+            .par_iter_mut()
+            .zip(lighting.par_iter())
+            .enumerate()
+            .map(|(p, (need, l))| {
+                // A pixel not sampled has no G-buffer pixel of this frame to test, except in
+                // the frame of a move, where every pixel is traced (the combination's carried
+                // pixels wait then, and their states may be dropped all the same).
+                *need = if l.stats.n == 0 && !after_move {
+                    0
+                } else {
+                    let kept =
+                        reprojection.kept_by_sampled(p, &gbuffer.pixels, w, tolerance, after_move);
+                    fresh.saturating_sub(kept + l.stats.n)
+                };
+                u64::from(*need)
+            })
+            .sum();
+        if missing == 0 {
+            return 0;
+        }
+        self.gbuffer.resize(gbuffer.width, gbuffer.height);
+        self.lighting.resize(lighting.len(), LightSample::default());
+        let plan = Missing {
+            need: &self.need,
+            history,
+            lighting,
+        };
+        let rays = trace::fused(
+            &mut self.gbuffer,
+            &mut self.lighting,
+            previous,
+            tracer,
+            &plan,
+        )
+        .rays;
+        lighting
+            .par_iter_mut()
+            .zip(self.lighting.par_iter())
+            .zip(self.need.par_iter())
+            .for_each(|((l, extra), &need)| {
+                if need > 0 {
+                    l.stats.merge(&extra.stats);
+                }
+            });
+        rays
+    }
+
+    fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.need.capacity() * size_of::<u32>()
+            + self.gbuffer.pixels.capacity() * size_of::<GPixel>()
+            + self.lighting.capacity() * size_of::<LightSample>()
+    }
+}
+
+/// [`Repair`]'s pixels: the samples they lack, continuing their sample sequences after this
+/// frame's.
+struct Missing<'a> {
+    need: &'a [u32],
+    history: &'a [PixelStats],
+    lighting: &'a [LightSample],
+}
+
+impl Plan for Missing<'_> {
+    #[inline]
+    fn sample(&self, pixel: usize) -> Option<u32> {
+        (self.need[pixel] > 0).then(|| self.history[pixel].n + self.lighting[pixel].stats.n)
+    }
+
+    #[inline]
+    fn keep(&self, pixel: usize, _: &GPixel) -> u32 {
+        self.need[pixel]
+    }
+}
+
+impl Stage for Reprojection {
+    fn name(&self) -> &'static str {
+        REPROJECT
+    }
+
+    fn views(&self) -> &'static [View] {
+        Self::VIEWS
+    }
+
+    /// The fraction of the pixel's states kept at the last move (`reprojected`); its
+    /// [`Fate`] as a number (`rejection`).
+    fn value(&self, _: &FrameState, view: usize, i: usize) -> Vec3 {
+        if view == 0 {
+            let kept = self.kept.get(i).copied().unwrap_or(0);
+            Vec3::splat(kept as f32 / self.samples.max(1) as f32)
+        } else {
+            Vec3::splat(self.fate(i) as u8 as f32)
+        }
+    }
+
+    fn paint(&self, _: &FrameState, _: usize, i: usize) -> [u8; 3] {
+        self.fate(i).colour()
+    }
+
+    fn bytes(&self) -> usize {
+        Reprojection::bytes(self)
+    }
 }
 
 #[cfg(test)]

@@ -66,9 +66,6 @@
 //!   hash of the seed and the pass, the pixel and its sample index, its neighbours' start in
 //!   the offset table from a hash of the same, and the pool from the seed and the sample
 //!   index, so frames do not depend on the thread count.
-//! - **History**: the reservoirs survive camera moves (temporal reuse follows the motion
-//!   vectors) and frames that do not accumulate; any other change of the settings, a reset or
-//!   a new resolution forgets them.
 //! - **Speed**: a block's targets on point lights and emissive triangles are computed in one
 //!   branch-free loop over its structure of arrays, which the compiler turns into SIMD lanes
 //!   (AVX-512 or AVX2 chosen at run time; other lights are evaluated one by one); a block is
@@ -77,9 +74,21 @@
 //!   evaluates a pixel's neighbours' samples together the same way, prefetches the neighbours
 //!   of the pixel four ahead, and tests its neighbours on a 16-byte key per pixel (depth and
 //!   normal) instead of the G-buffer pixel.
-//! - **Not yet**: together with seed 000's adaptive sampling or reprojection (the
-//!   configuration is refused), and the pass costs far more than the GPU implementations'
-//!   (BENCHMARKS.md, "Seed 004").
+//! - **With seed 000**: the reservoirs are those of the pixels the frame traces (adaptive
+//!   sampling's picks; an untraced pixel has none this frame, and its neighbours and the
+//!   next frame find it empty); each pixel's first sample of the frame, whatever its own
+//!   sample index, is lit by its reservoir, and the repair's extra samples (`fresh_spp`) use
+//!   next event estimation. After a camera move a carried pixel draws fresh candidates like
+//!   any other: forward reprojection carries its accumulated light (which holds the direct
+//!   light its reservoirs gave in earlier frames), while the reservoirs' own temporal reuse
+//!   follows the motion vectors as it does without reprojection. The pool and the pixels'
+//!   streams are keyed by the frame's sample index in its epoch (`frames * spp`), not by a
+//!   pixel's own count.
+//! - **History** ([`Restir::start_epoch`]): the reservoirs survive camera moves (temporal
+//!   reuse follows the motion vectors) and frames that do not accumulate; any other change of
+//!   the settings, a reset or a new resolution forgets them.
+//! - **Cost**: the pass costs far more than the GPU implementations' (BENCHMARKS.md, "Seed
+//!   004").
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
@@ -95,7 +104,18 @@ use crate::path::{PathTracer, Vertex};
 use super::gbuffer::{GBuffer, PrimaryHit};
 use crate::surface::Surface;
 
+use super::display::{View, ViewKind};
 use super::gbuffer::GPixel;
+use super::ping_pong::PingPong;
+use super::stage::Stage;
+use super::state::{Change, FrameState, Times};
+use super::trace::{FirstHitLight, RUN};
+
+/// Seed 004's passes: the reservoirs' candidates (with visibility reuse), temporal and
+/// spatial reuse. The first is the stage's name (the menu's heading of its views).
+pub const RESTIR: &str = "restir";
+pub const RESTIR_TEMPORAL: &str = "restir temporal";
+pub const RESTIR_SPATIAL: &str = "restir spatial";
 
 /// Largest candidate count (the thesis's keys halve and double it within 1..1024).
 pub const MAX_CANDIDATES: u32 = 1024;
@@ -634,22 +654,22 @@ impl Receiver {
 /// ReSTIR's per-pixel state across frames.
 #[derive(Debug, Default)]
 pub struct Restir {
-    /// This frame's reservoirs (after the spatial pass: the ones shading uses).
-    pub reservoirs: Vec<Reservoir>,
+    /// This frame's reservoirs (after the spatial pass: the ones shading uses), and the
+    /// previous frame's final ones (temporal reuse).
+    pub reservoirs: PingPong<Reservoir>,
     /// Scratch for the spatial iterations.
     scratch: Vec<Reservoir>,
     /// This frame's surfaces as the spatial pass compares them.
     keys: Vec<Key>,
-    /// This frame's receivers (`None`: sky or delta surface).
-    pub receivers: Vec<Option<Receiver>>,
+    /// This frame's receivers (`None`: sky or delta surface), and the previous frame's.
+    pub receivers: PingPong<Option<Receiver>>,
     /// This frame's light candidates.
     pool: LightPool,
     /// The spatial pass's neighbour offsets ([`disk_offsets`]) and their radius.
     offsets: Vec<(i32, i32)>,
     offsets_radius: f32,
-    /// The previous frame's final reservoirs, receivers and G-buffer, for temporal reuse.
-    previous: Vec<Reservoir>,
-    previous_receivers: Vec<Option<Receiver>>,
+    /// The previous frame's G-buffer, for temporal reuse (a copy: the frame state owns the
+    /// frame's).
     previous_gbuffer: Vec<GPixel>,
     /// The previous frame's state is usable (same resolution, same epoch's world).
     valid: bool,
@@ -789,18 +809,50 @@ fn similar(a: &Key, b: &Key, config: &RestirConfig) -> bool {
 }
 
 impl Restir {
+    pub const VIEWS: &'static [View] = &[
+        View {
+            name: "reservoir-m",
+            about: "the candidates behind each pixel's reservoir (M), as a heat map from 0 to \
+                    the image's largest (dark grey: no reservoir)",
+            kind: ViewKind::HeatOfLargest,
+        },
+        View {
+            name: "reservoir-weight",
+            about: "each reservoir's contribution weight W, as a heat map of its logarithm \
+                    over the image's range (dark grey: W = 0, no sample or an occluded one)",
+            kind: ViewKind::HeatOfLog,
+        },
+    ];
+
     /// Forgets the previous frame (a new epoch, or a resize).
     pub fn reset(&mut self) {
         self.valid = false;
     }
 
+    /// At a new epoch: a change of the settings forgets the previous frame's reservoirs; a
+    /// camera move, or a frame of a pipeline that does not accumulate, keeps them.
+    pub fn start_epoch(&mut self, change: Change) {
+        if change == Change::Settings {
+            self.reset();
+        }
+    }
+
+    /// The stage for a frame: its passes with `config`, its streams keyed by sample index
+    /// `index` (the frame's in its epoch).
+    pub fn frame<'a>(&'a mut self, config: &'a RestirConfig, index: u32) -> RestirFrame<'a> {
+        RestirFrame {
+            restir: self,
+            config,
+            index,
+        }
+    }
+
     /// Bytes held per pixel buffers.
     pub fn bytes(&self) -> usize {
         use std::mem::size_of;
-        (self.reservoirs.capacity() + self.scratch.capacity() + self.previous.capacity())
-            * size_of::<Reservoir>()
-            + (self.receivers.capacity() + self.previous_receivers.capacity())
-                * size_of::<Option<Receiver>>()
+        self.reservoirs.bytes()
+            + self.scratch.capacity() * size_of::<Reservoir>()
+            + self.receivers.bytes()
             + self.previous_gbuffer.capacity() * size_of::<GPixel>()
             + self.keys.capacity() * size_of::<Key>()
             + self.pool.bytes()
@@ -815,7 +867,7 @@ impl Restir {
         config: &RestirConfig,
         gbuffer: &GBuffer,
         index: u32,
-        firsts: &[Vec<PrimaryHit>],
+        firsts: &[Vec<Option<PrimaryHit>>],
         run: usize,
     ) -> RestirTimes {
         let (width, gbuffer) = (gbuffer.width, &gbuffer.pixels[..]);
@@ -823,23 +875,25 @@ impl Restir {
         let seed = tracer.settings.seed;
         let lights = &tracer.world.lights;
         let mut times = RestirTimes::default();
-        if self.previous.len() != n {
+        if self.reservoirs.previous.len() != n {
             self.valid = false;
         }
         let t = std::time::Instant::now();
-        self.receivers.resize(n, None);
+        self.receivers.current.resize(n, None);
         self.receivers
+            .current
             .par_chunks_mut(run)
             .zip(firsts.par_iter())
             .for_each(|(receivers, hits)| {
                 for (r, h) in receivers.iter_mut().zip(hits) {
-                    *r = h
-                        .first
-                        .as_ref()
-                        .and_then(|v| Receiver::new(tracer, v, h.ray.direction));
+                    *r = h.as_ref().and_then(|h| {
+                        h.first
+                            .as_ref()
+                            .and_then(|v| Receiver::new(tracer, v, h.ray.direction))
+                    });
                 }
             });
-        self.reservoirs.resize(n, Reservoir::default());
+        self.reservoirs.current.resize(n, Reservoir::default());
         self.pool.build(lights, POOL_BLOCKS, seed, index);
         let pool = &self.pool;
         let candidates = config.candidates;
@@ -848,8 +902,9 @@ impl Restir {
         let unbiased = config.unbiased;
         times.rays += self
             .reservoirs
+            .current
             .par_iter_mut()
-            .zip(self.receivers.par_iter())
+            .zip(self.receivers.current.par_iter())
             .enumerate()
             .map(|(pixel, (r, receiver))| {
                 *r = Reservoir::default();
@@ -890,7 +945,7 @@ impl Restir {
     /// reset).
     pub fn shaded(&self) -> &[Reservoir] {
         if self.valid {
-            &self.previous
+            &self.reservoirs.previous
         } else {
             &[]
         }
@@ -899,8 +954,8 @@ impl Restir {
     /// After shading: this frame's reservoirs, receivers and G-buffer become the previous
     /// frame's.
     pub fn keep(&mut self, gbuffer: &[GPixel]) {
-        std::mem::swap(&mut self.previous, &mut self.reservoirs);
-        std::mem::swap(&mut self.previous_receivers, &mut self.receivers);
+        self.reservoirs.swap();
+        self.receivers.swap();
         self.previous_gbuffer.clear();
         self.previous_gbuffer.extend_from_slice(gbuffer);
         self.valid = true;
@@ -1045,12 +1100,13 @@ impl Restir {
     ) -> u64 {
         let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
         let streams = PixelStreams::new(tracer.settings.seed, 1, index);
-        let previous = &self.previous;
-        let previous_receivers = &self.previous_receivers;
+        let previous = &self.reservoirs.previous;
+        let previous_receivers = &self.receivers.previous;
         let previous_gbuffer = &self.previous_gbuffer;
         self.reservoirs
+            .current
             .par_iter_mut()
-            .zip(self.receivers.par_iter())
+            .zip(self.receivers.current.par_iter())
             .enumerate()
             .map(|(pixel, (r, receiver))| {
                 let Some(receiver) = receiver else {
@@ -1111,7 +1167,7 @@ impl Restir {
         let (w, h) = (width as i64, (gbuffer.len() / width.max(1) as usize) as i64);
         let seed = tracer.settings.seed;
         self.scratch
-            .resize(self.reservoirs.len(), Reservoir::default());
+            .resize(self.reservoirs.current.len(), Reservoir::default());
         if iteration == 0 || self.keys.len() != gbuffer.len() {
             self.keys.resize(gbuffer.len(), Key::default());
             self.keys
@@ -1144,8 +1200,8 @@ impl Restir {
             })
         };
         let keys = &self.keys;
-        let input = &self.reservoirs;
-        let receivers = &self.receivers;
+        let input = &self.reservoirs.current;
+        let receivers = &self.receivers.current;
         let rays = self
             .scratch
             .par_iter_mut()
@@ -1186,8 +1242,69 @@ impl Restir {
                 rays as u64
             })
             .sum();
-        std::mem::swap(&mut self.reservoirs, &mut self.scratch);
+        std::mem::swap(&mut self.reservoirs.current, &mut self.scratch);
         rays
+    }
+}
+
+/// ReSTIR in one frame: the stage that lights the first hits ([`FirstHitLight`]).
+pub struct RestirFrame<'a> {
+    restir: &'a mut Restir,
+    config: &'a RestirConfig,
+    index: u32,
+}
+
+impl FirstHitLight for RestirFrame<'_> {
+    /// The candidates, temporal and spatial passes.
+    fn prepare(
+        &mut self,
+        tracer: &PathTracer,
+        gbuffer: &GBuffer,
+        hits: &[Vec<Option<PrimaryHit>>],
+        times: &mut Times,
+    ) -> u64 {
+        let t = self
+            .restir
+            .run(tracer, self.config, gbuffer, self.index, hits, RUN);
+        times.add(RESTIR, t.candidates_ms);
+        times.add(RESTIR_TEMPORAL, t.temporal_ms);
+        times.add(RESTIR_SPATIAL, t.spatial_ms);
+        t.rays
+    }
+
+    /// The pixel's reservoir shaded (`None`: no receiver there, the sky or a delta surface),
+    /// with one shadow ray.
+    #[inline]
+    fn direct(&self, tracer: &PathTracer, pixel: usize, rays: &mut u32) -> Option<Vec3> {
+        let r = &self.restir;
+        r.receivers.current[pixel]
+            .as_ref()
+            .map(|rec| rec.shade(tracer, &r.reservoirs.current[pixel], rays))
+    }
+
+    fn finish(&mut self, gbuffer: &GBuffer) {
+        self.restir.keep(&gbuffer.pixels);
+    }
+}
+
+impl Stage for Restir {
+    fn name(&self) -> &'static str {
+        RESTIR
+    }
+
+    fn views(&self) -> &'static [View] {
+        Self::VIEWS
+    }
+
+    /// The last frame's reservoir's `M` (`reservoir-m`) or `W` (`reservoir-weight`); 0 where
+    /// there is none.
+    fn value(&self, _: &FrameState, view: usize, i: usize) -> Vec3 {
+        let r = self.shaded().get(i);
+        Vec3::splat(r.map_or(0.0, |r| if view == 0 { r.m } else { r.weight }))
+    }
+
+    fn bytes(&self) -> usize {
+        Restir::bytes(self)
     }
 }
 

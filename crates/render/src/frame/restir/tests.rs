@@ -239,14 +239,14 @@ fn edge(world: &World) -> (Restir, Vec<GPixel>) {
             .unwrap();
         let target = rec.target(lights, &sample);
         assert!(target > 0.0);
-        restir.reservoirs.push(Reservoir {
+        restir.reservoirs.current.push(Reservoir {
             sample,
             w_sum: target,
             m: 1.0,
             target,
             weight: 1.0,
         });
-        restir.receivers.push(Some(rec));
+        restir.receivers.current.push(Some(rec));
     }
     (restir, gbuffer)
 }
@@ -269,7 +269,7 @@ fn spatial_reuse_never_crosses_a_depth_edge() {
             restir.spatial(&tracer, &settings, &gbuffer, 16, 0, iteration);
         }
         let mut reused = 0;
-        for (p, r) in restir.reservoirs.iter().enumerate() {
+        for (p, r) in restir.reservoirs.current.iter().enumerate() {
             let left = p % 16 < 8;
             assert_eq!(r.sample.light < 2, left, "pixel {p}: {r:?}");
             reused += usize::from(r.m > 1.0);
@@ -287,13 +287,13 @@ fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
     let (mut restir, gbuffer) = edge(&world);
     // Last frame: the same edge, with every reservoir's sample swapped to the other light,
     // and twice the candidates behind it.
-    restir.previous = restir.reservoirs.clone();
-    for (p, prev) in restir.previous.iter_mut().enumerate() {
+    restir.reservoirs.previous = restir.reservoirs.current.clone();
+    for (p, prev) in restir.reservoirs.previous.iter_mut().enumerate() {
         // Left pixels remember a right-half sample and vice versa.
-        let other = restir.reservoirs[(p + 8) % 16 + (p / 16) * 16];
+        let other = restir.reservoirs.current[(p + 8) % 16 + (p / 16) * 16];
         *prev = Reservoir { m: 2.0, ..other };
     }
-    restir.previous_receivers = restir.receivers.clone();
+    restir.receivers.previous = restir.receivers.current.clone();
     restir.previous_gbuffer = gbuffer.clone();
     restir.valid = true;
     // This frame: the left half moved by 8 pixels (its previous pixel lies in the right half,
@@ -309,7 +309,7 @@ fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
         ..RestirConfig::default()
     };
     restir.temporal(&tracer, &settings, &moved, 16, 0);
-    for (p, r) in restir.reservoirs.iter().enumerate() {
+    for (p, r) in restir.reservoirs.current.iter().enumerate() {
         if p % 16 < 8 {
             // Rejected: its own sample, alone.
             assert!(r.sample.light < 2 && r.m == 1.0, "pixel {p}: {r:?}");

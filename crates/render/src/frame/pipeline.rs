@@ -1,0 +1,426 @@
+//! The frame driver: the stages called in order ([`Pipeline::render_frame`]), what a frame
+//! reports, and the display pass over the stages' views.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::config::{Config, FrameConfig};
+use crate::path::PathTracer;
+use crate::world::World;
+
+use super::accumulation::PixelStats;
+use super::adaptive::{Adaptive, Schedule};
+use super::display::{DisplayConfig, DisplayMode, DISPLAY};
+use super::filter::{Filter, FILTER};
+use super::history::{History, ACCUMULATE};
+use super::plan::{with_plan, FramePlan, Planned};
+use super::reprojection::{Reprojection, ReprojectionReport, REPROJECT};
+use super::restir::{Restir, RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL};
+use super::stage::{view_index, Stage};
+use super::state::{Change, FrameState, PassTime, Times};
+use super::trace::{self, FirstHitLight, Lighting, Primary, Uniform, LIGHTING, PRIMARY};
+
+/// Every pass, in the order a frame runs them.
+pub const PASSES: [&str; 9] = [
+    REPROJECT,
+    PRIMARY,
+    RESTIR,
+    RESTIR_TEMPORAL,
+    RESTIR_SPATIAL,
+    LIGHTING,
+    ACCUMULATE,
+    FILTER,
+    DISPLAY,
+];
+
+/// What one call of [`Pipeline::render_frame`] did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameReport {
+    /// Frames rendered since the pipeline was made (this one included).
+    pub frame: u64,
+    /// Resets so far (camera or settings changes).
+    pub epoch: u64,
+    /// Frames in the history (this epoch).
+    pub accumulated: u32,
+    /// Samples per pixel in the history.
+    pub spp: u32,
+    /// Samples traced in this frame, over all pixels (each a camera path). Divided by the
+    /// pixel count: the frame's mean samples per pixel, which differs from `spp` per frame
+    /// when a technique (adaptive sampling) gives pixels different counts.
+    pub samples: u64,
+    /// False when accumulation had reached `max_frames`: nothing was traced and the history
+    /// is as it was.
+    pub traced: bool,
+    pub passes: Vec<PassTime>,
+    /// Wall time of the whole frame.
+    pub ms: f64,
+    /// Rays traced (closest-hit and shadow queries; the reprojection pass's occlusion rays
+    /// are not counted).
+    pub rays: u64,
+    /// What forward reprojection did, on the frame after a camera move.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reprojection: Option<ReprojectionReport>,
+    /// Adaptive sampling's threshold this frame (`None` off, or past the schedule).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tau: Option<f32>,
+    /// On the frame that fixed adaptive sampling's probabilities: the pixels whose
+    /// probability is above 1 (the combination's flaw, Algorithm 2: they went past
+    /// `max_spp`; none with `cap`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub probability_above_one: Option<u64>,
+}
+
+impl FrameReport {
+    /// Milliseconds of pass `name` (0 when it did not run).
+    pub fn pass_ms(&self, name: &str) -> f64 {
+        self.passes
+            .iter()
+            .filter(|p| p.pass == name)
+            .map(|p| p.ms)
+            .sum()
+    }
+}
+
+/// The frame pipeline: the frame state the stages share, and each stage's own state.
+pub struct Pipeline {
+    /// The configuration in force (as last given).
+    config: Config,
+    /// Why the next frame must start a new epoch (none: it continues this one).
+    reset: Option<Change>,
+    /// What the stages share: buffers, cameras, counters.
+    pub frame: FrameState,
+    /// The display pass's output: 8-bit RGBA, row-major.
+    pub rgba: Vec<u8>,
+    /// Seed 000's forward reprojection.
+    pub reprojection: Reprojection,
+    /// Seed 000's adaptive sampling.
+    pub adaptive: Adaptive,
+    /// Seed 004's ReSTIR DI.
+    pub restir: Restir,
+    /// Seed 001's reconstruction filters.
+    pub filter: Filter,
+}
+
+impl Pipeline {
+    /// A pipeline for `config` (checked by [`Config::validate`] beforehand by the caller).
+    pub fn new(config: Config) -> Self {
+        Self {
+            frame: FrameState::new(config.path_settings()),
+            config,
+            reset: Some(Change::Settings),
+            rgba: Vec::new(),
+            reprojection: Reprojection::default(),
+            adaptive: Adaptive::default(),
+            restir: Restir::default(),
+            filter: Filter::default(),
+        }
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The camera of the current epoch (after the first frame).
+    pub fn camera(&self) -> Option<&crate::camera::Camera> {
+        self.frame.camera.as_ref()
+    }
+
+    /// Frames accumulated in this epoch.
+    pub fn accumulated(&self) -> u32 {
+        self.frame.frames
+    }
+
+    /// Replaces the configuration. Anything that changes the image (camera, resolution,
+    /// samples, passes) starts a new epoch at the next frame; the display settings,
+    /// `max_frames` and the reconstruction filter (a post-process of the history) do not. A
+    /// change of the view alone (position, direction, up, field of view) is a camera move,
+    /// which forward reprojection and ReSTIR's reservoirs survive.
+    pub fn set_config(&mut self, config: &Config) {
+        if let Some(change) = change(&self.config, config) {
+            self.reset = Some(self.reset.map_or(change, |r| r.and(change)));
+        }
+        self.config = config.clone();
+    }
+
+    /// Clears the history: the next frame starts a new epoch afresh.
+    pub fn reset(&mut self) {
+        self.reset = Some(Change::Settings);
+    }
+
+    /// Renders one frame of `world`: a new epoch when something changed (each stage by its
+    /// own rule), then the frame's passes in order. The display pass is
+    /// [`display`](Self::display), run by those who show or write frames.
+    pub fn render_frame(&mut self, world: &World) -> FrameReport {
+        let start = Instant::now();
+        self.frame.times = Times::default();
+        let change =
+            (self.reset.take()).or((!self.config.frame.accumulate).then_some(Change::Repeat));
+        let mut reprojected = change.and_then(|change| self.start_epoch(world, change));
+        let Self {
+            config,
+            frame: f,
+            reprojection,
+            adaptive,
+            restir,
+            filter,
+            ..
+        } = self;
+        let cfg = &config.frame;
+        // Seed 000's techniques: each pixel continues its own sample count.
+        let counts = cfg.adaptive.enabled || cfg.reprojection.enabled;
+        let traced = !(cfg.accumulate && cfg.max_frames > 0 && f.frames >= cfg.max_frames);
+        let (mut rays, mut samples, mut tau, mut above_one) = (0, 0, None, None);
+        if traced {
+            let camera = f.camera.clone().expect("set by start_epoch");
+            let tracer = PathTracer {
+                world,
+                camera: &camera,
+                settings: f.settings,
+            };
+            // Seed 000: adaptive sampling's schedule, and the plan.
+            let (combination, after_move) = (cfg.reprojection.enabled, reprojection.after_move);
+            above_one = adaptive.prepare(&cfg.adaptive, &f.history, f.width as usize, combination);
+            let seed = f.settings.seed;
+            let schedule =
+                adaptive.schedule(&cfg.adaptive, &f.history, combination, after_move, seed);
+            let end = schedule.map(|s| s.end);
+            tau = schedule.filter(|s| s.iteration < s.max_spp).map(|s| s.tau);
+            filter.before_trace(&mut f.gbuffer, &mut f.lighting, !counts);
+            let index = f.sample_index();
+            let plan = plan(
+                cfg,
+                &f.history,
+                index,
+                f.spp,
+                adaptive,
+                reprojection,
+                schedule,
+            );
+            // Primary visibility, seed 004's ReSTIR on the whole frame's first hits, lighting.
+            let mut restir = cfg.restir.enabled.then(|| restir.frame(&cfg.restir, index));
+            let first_hits = restir.as_mut().map(|r| r as &mut dyn FirstHitLight);
+            let previous = f.previous_camera.as_ref();
+            let (g, l, hits, times) = (&mut f.gbuffer, &mut f.lighting, &mut f.hits, &mut f.times);
+            rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits));
+            // Seed 000: the samples reprojected pixels lack (`fresh_spp`).
+            let t = Instant::now();
+            rays += reprojection.repair(&cfg.reprojection, f, &tracer);
+            f.times.since(LIGHTING, t);
+            // Accumulation: into reprojection's states when it is on.
+            let t = Instant::now();
+            samples = match counts {
+                true => History::samples(&f.lighting),
+                false => f.spp as u64 * f.pixels() as u64,
+            };
+            if cfg.reprojection.enabled {
+                let p = &mut adaptive.probability;
+                reprojection.accumulate_frame(world, &cfg.reprojection, f, p, reprojected.as_mut());
+            } else {
+                History::accumulate(&mut f.history, &f.lighting, f.frames == 0);
+            }
+            above_one = adaptive
+                .end_frame(&cfg.adaptive, &f.history, end)
+                .or(above_one);
+            f.times.since(ACCUMULATE, t);
+            f.frames += 1;
+            f.previous_camera = Some(camera);
+        }
+        f.number += 1;
+        // Seed 001's reconstruction filter.
+        filter.pass(&cfg.filter, f, traced, !counts);
+        FrameReport {
+            frame: f.number,
+            epoch: f.epoch,
+            accumulated: f.frames,
+            spp: match counts {
+                true => History::mean_samples(&f.history),
+                false => f.history.first().map_or(0, |h| h.n),
+            },
+            traced,
+            samples,
+            passes: std::mem::take(&mut f.times.0),
+            ms: start.elapsed().as_secs_f64() * 1e3,
+            rays,
+            reprojection: reprojected,
+            tau,
+            probability_above_one: above_one,
+        }
+    }
+
+    /// A new epoch after `change`: the frame state (seed, camera, buffers), then each stage
+    /// by its own rule. Returns what forward reprojection did, when it carried the history.
+    fn start_epoch(&mut self, world: &World, change: Change) -> Option<ReprojectionReport> {
+        let (c, f) = (&self.config, &mut self.frame);
+        let (previous, resized) = f.start_epoch(
+            c.path_settings(),
+            c.spp,
+            c.render_camera(world),
+            c.width,
+            c.height,
+        );
+        let cfg = &c.frame;
+        let reprojected = self.reprojection.start_epoch(
+            world,
+            &cfg.reprojection,
+            cfg.accumulate,
+            change,
+            resized,
+            previous.as_ref(),
+            f,
+            &mut self.adaptive.probability,
+        );
+        // Seed 000's techniques read the history before the frame's accumulation: it is
+        // cleared, unless reprojection carried it.
+        let clear = (cfg.adaptive.enabled || cfg.reprojection.enabled) && reprojected.is_none();
+        self.adaptive.start_epoch(f.pixels(), clear);
+        if clear {
+            History::clear(&mut f.history);
+        }
+        self.restir.start_epoch(change);
+        reprojected
+    }
+
+    /// The stages, in the frame's order (each with its views: [`super::views::STAGES`]).
+    pub fn stages(&self) -> [&dyn Stage; 7] {
+        [
+            &self.reprojection,
+            &self.adaptive,
+            &Primary,
+            &self.restir,
+            &Lighting,
+            &History,
+            &self.filter,
+        ]
+    }
+
+    /// The stage that has view `mode`, and the view's index among its views.
+    fn view(&self, mode: &DisplayMode) -> Option<(&dyn Stage, usize)> {
+        self.stages()
+            .into_iter()
+            .find_map(|s| Some((s, view_index(s.views(), mode.name())?)))
+    }
+
+    /// The display pass: the configured display mode as 8-bit RGBA into
+    /// [`rgba`](Self::rgba); its time is added to `report`.
+    pub fn display(&mut self, report: &mut FrameReport) {
+        let t = Instant::now();
+        let mut rgba = std::mem::take(&mut self.rgba);
+        self.rgba8(&self.config.display.mode, &self.config.display, &mut rgba);
+        self.rgba = rgba;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        report.passes.push(PassTime { pass: DISPLAY, ms });
+        report.ms += ms;
+    }
+
+    /// View `mode` as 8-bit RGBA into `out` with the settings `display` (black for a name no
+    /// stage has).
+    pub fn rgba8(&self, mode: &DisplayMode, display: &DisplayConfig, out: &mut Vec<u8>) {
+        match self.view(mode) {
+            Some((stage, view)) => stage.rgba8(&self.frame, view, display, out),
+            None => {
+                out.clear();
+                out.resize(self.frame.pixels() * 4, 0);
+            }
+        }
+    }
+
+    /// View `mode`'s linear values, row-major (zero for a name no stage has).
+    pub fn linear(&self, mode: &DisplayMode) -> Vec<Vec3> {
+        match self.view(mode) {
+            Some((stage, view)) => stage.linear(&self.frame, view),
+            None => vec![Vec3::ZERO; self.frame.pixels()],
+        }
+    }
+
+    /// View `mode`'s linear value at pixel `pixel`.
+    pub fn value(&self, mode: &DisplayMode, pixel: usize) -> Vec3 {
+        self.view(mode).map_or(Vec3::ZERO, |(stage, view)| {
+            stage.value(&self.frame, view, pixel)
+        })
+    }
+
+    /// The image (mean radiance, filtered when the filter is on), row-major.
+    pub fn image(&self) -> Vec<Vec3> {
+        self.linear(&DisplayMode::FINAL)
+    }
+
+    /// Bytes the pipeline's per-pixel buffers hold: the plain pipeline's (G-buffer,
+    /// lighting, history, display) and the techniques' (each stage's own, and the whole
+    /// frame's first hits that ReSTIR reads).
+    pub fn bytes(&self) -> (usize, usize) {
+        let plain = self.frame.bytes() + self.rgba.capacity();
+        let techniques =
+            self.stages().iter().map(|s| s.bytes()).sum::<usize>() + self.frame.hits_bytes();
+        (plain, techniques)
+    }
+}
+
+/// The frame's plan: seed 000's when its techniques are on (each pixel from its own count in
+/// `history`, adaptive sampling's `schedule`), else every pixel from sample index `index`;
+/// `spp` samples per pixel and frame.
+fn plan<'a>(
+    cfg: &FrameConfig,
+    history: &'a [PixelStats],
+    index: u32,
+    spp: u32,
+    adaptive: &'a Adaptive,
+    reprojection: &'a Reprojection,
+    schedule: Option<Schedule<'a>>,
+) -> FramePlan<'a> {
+    let r = &cfg.reprojection;
+    if !(cfg.adaptive.enabled || r.enabled) {
+        return FramePlan::Uniform(Uniform(index, spp));
+    }
+    FramePlan::Planned(Planned {
+        history,
+        probability: &adaptive.probability,
+        schedule,
+        after_move: reprojection
+            .after_move
+            .then_some((reprojection, r.depth_tolerance)),
+        reprojection: r.enabled,
+        spp,
+        fresh: if reprojection.carried { r.fresh_spp } else { 0 },
+    })
+}
+
+/// What a change of the configuration from `old` to `new` asks of the next frame: a camera
+/// move (the view alone changed), a new epoch (anything else that changes the image), or
+/// nothing (the display settings, `max_frames` and the reconstruction filter, a post-process
+/// of the history).
+fn change(old: &Config, new: &Config) -> Option<Change> {
+    let image = |c: &Config| Config {
+        display: Default::default(),
+        frame: FrameConfig {
+            max_frames: 0,
+            filter: Default::default(),
+            ..c.frame.clone()
+        },
+        ..c.clone()
+    };
+    let (new, old) = (image(new), image(old));
+    if new == old {
+        return None;
+    }
+    let view = |c: &Config| crate::config::CameraConfig {
+        look_from: None,
+        look_at: None,
+        up: None,
+        fov_y: None,
+        ..c.camera.clone()
+    };
+    let moved = Config {
+        camera: view(&new),
+        ..new.clone()
+    } == Config {
+        camera: view(&old),
+        ..old
+    };
+    Some(if moved {
+        Change::Camera
+    } else {
+        Change::Settings
+    })
+}

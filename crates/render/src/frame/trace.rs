@@ -1,0 +1,563 @@
+//! The primary visibility and lighting passes over the pixels a [`Plan`] picks, run by runs of
+//! pixels in parallel, and their stages ([`Primary`], [`Lighting`]), whose views are the
+//! G-buffer and this frame's lighting.
+//!
+//! ```text
+//! primary   camera, previous camera, plan  -> G-buffer, first hits
+//! lighting  first hits, G-buffer, plan,    -> lighting (direct / indirect statistics, first
+//!           direct light at the first hit     bounce)
+//! ```
+//!
+//! When no stage needs the whole frame's first hits before the lighting pass, the two passes
+//! are fused: a run's first hits go straight from one pass to the other while they are in
+//! cache ([`fused`]). Otherwise ([`primary`], then [`lighting`]) the first hits are kept for
+//! the whole frame in [`FrameState::hits`](super::state::FrameState::hits), and the lighting
+//! pass may take each pixel's direct light at its first hit from a stage (ReSTIR's
+//! reservoirs).
+
+use std::time::Instant;
+
+use glam::Vec3;
+use pathlight_accel::{Hit, Ray};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::path::{CameraSample, PathTracer};
+
+use super::display::{View, ViewKind};
+use super::gbuffer::{self, GBuffer, GPixel, PrimaryHit};
+use super::lighting::{self, LightSample};
+use super::stage::Stage;
+use super::state::{FrameState, Times};
+
+/// Pixels per parallel task: a run of pixels in row-major order, small enough that its first
+/// hits stay in the L1/L2 cache between the primary and the lighting pass.
+pub const RUN: usize = 128;
+
+/// Which pixels a frame traces, and from which sample index.
+pub trait Plan: Sync {
+    /// Every pixel is traced from [`sample`](Self::sample)`(0)` and lit: the plain
+    /// pipeline's loops, without per-pixel bookkeeping.
+    const EVERY_PIXEL: bool = false;
+    /// The first sample index of pixel `pixel` this frame; `None`: the pixel is not traced
+    /// (its G-buffer pixel stays as it was, its lighting is empty).
+    fn sample(&self, pixel: usize) -> Option<u32>;
+    /// After the primary pass filled G-buffer pixel `g`: how many samples the lighting pass
+    /// takes in the pixel (0: none).
+    fn keep(&self, pixel: usize, g: &GPixel) -> u32;
+    /// The lighting pass measures the radiance along each pixel's first bounce.
+    fn along_first_bounce(&self) -> bool {
+        false
+    }
+}
+
+/// The plain pipeline: every pixel, all from one sample index (`.0`), `.1` samples each.
+pub struct Uniform(pub u32, pub u32);
+
+impl Plan for Uniform {
+    const EVERY_PIXEL: bool = true;
+
+    #[inline(always)]
+    fn sample(&self, _: usize) -> Option<u32> {
+        Some(self.0)
+    }
+
+    #[inline(always)]
+    fn keep(&self, _: usize, _: &GPixel) -> u32 {
+        self.1
+    }
+}
+
+/// What the passes traced: rays, and the thread time (seconds) of each pass.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Traced {
+    pub rays: u64,
+    pub primary_s: f64,
+    pub lighting_s: f64,
+}
+
+impl std::ops::Add for Traced {
+    type Output = Traced;
+
+    fn add(self, b: Traced) -> Traced {
+        Traced {
+            rays: self.rays + b.rays,
+            primary_s: self.primary_s + b.primary_s,
+            lighting_s: self.lighting_s + b.lighting_s,
+        }
+    }
+}
+
+/// The pixels of the run of `len` pixels from pixel `start` of an image `w` wide, in order (no
+/// division per pixel).
+#[inline(always)]
+fn run_pixels(start: usize, w: usize) -> impl Iterator<Item = (u32, u32)> {
+    let (mut x, mut y) = ((start % w) as u32, (start / w) as u32);
+    std::iter::from_fn(move || {
+        let p = (x, y);
+        x += 1;
+        if x as usize == w {
+            (x, y) = (0, y + 1);
+        }
+        Some(p)
+    })
+}
+
+/// The camera samples of the run of `pixels` from pixel `start` that `plan` traces, in a loop
+/// of independent iterations (their hash and Sobol latency chains overlap instead of stalling
+/// each trace), and the traced pixels' (index in the run, x, y, sample index); `untraced(k)`
+/// is called for the others.
+#[inline(always)]
+fn camera_samples<P: Plan>(
+    tracer: &PathTracer,
+    plan: &P,
+    start: usize,
+    pixels: impl Iterator<Item = (u32, u32)>,
+    cameras: &mut Vec<CameraSample>,
+    traced: &mut Vec<(usize, u32, u32, u32)>,
+    mut untraced: impl FnMut(usize),
+) {
+    cameras.clear();
+    traced.clear();
+    if P::EVERY_PIXEL {
+        let index = plan.sample(start).unwrap_or(0);
+        cameras.extend(pixels.map(|(x, y)| tracer.camera_sample(x, y, index)));
+    } else {
+        for (k, (x, y)) in pixels.enumerate() {
+            match plan.sample(start + k) {
+                Some(index) => {
+                    cameras.push(tracer.camera_sample(x, y, index));
+                    traced.push((k, x, y, index));
+                }
+                None => untraced(k),
+            }
+        }
+    }
+}
+
+/// Per-thread scratch of a run.
+type Scratch = (
+    Vec<CameraSample>,
+    Vec<Ray>,
+    Vec<Option<Hit>>,
+    Vec<PrimaryHit>,
+    Vec<(usize, u32, u32, u32)>,
+);
+
+fn scratch() -> Scratch {
+    (
+        Vec::with_capacity(RUN),
+        Vec::with_capacity(RUN),
+        Vec::with_capacity(RUN),
+        Vec::with_capacity(RUN),
+        Vec::with_capacity(RUN),
+    )
+}
+
+/// The primary and lighting passes fused, run by run: the pixels `plan` picks traced into
+/// `gbuffer` and `lighting` (`previous`: the previous frame's camera, for motion vectors).
+pub fn fused<P: Plan>(
+    gbuffer: &mut GBuffer,
+    lighting: &mut [LightSample],
+    previous: Option<&Camera>,
+    tracer: &PathTracer,
+    plan: &P,
+) -> Traced {
+    let w = gbuffer.width.max(1) as usize;
+    gbuffer
+        .pixels
+        .par_chunks_mut(RUN)
+        .zip(lighting.par_chunks_mut(RUN))
+        .enumerate()
+        .map_init(
+            scratch,
+            |(cameras, camera_rays, first_hits, hits, traced), (b, (gpixels, lpixels))| {
+                let start = b * RUN;
+                let mut rays = 0u64;
+                let t0 = Instant::now();
+                camera_samples(
+                    tracer,
+                    plan,
+                    start,
+                    run_pixels(start, w).take(gpixels.len()),
+                    cameras,
+                    traced,
+                    |k| lpixels[k] = LightSample::default(),
+                );
+                hits.clear();
+                rays += primary_run(
+                    tracer,
+                    previous,
+                    cameras,
+                    camera_rays,
+                    first_hits,
+                    |i, pixel, hit| {
+                        // The i-th camera sample's pixel of the run.
+                        let k = if P::EVERY_PIXEL { i } else { traced[i].0 };
+                        gpixels[k] = pixel;
+                        hits.push(hit);
+                    },
+                );
+                let t1 = Instant::now();
+                if P::EVERY_PIXEL {
+                    let index = plan.sample(start).unwrap_or(0);
+                    let spp = plan.keep(start, &gpixels[0]);
+                    for ((l, hit), (x, y)) in lpixels
+                        .iter_mut()
+                        .zip(hits.iter())
+                        .zip(run_pixels(start, w))
+                    {
+                        let (sample, r) =
+                            lighting::lighting::<false>(tracer, x, y, hit, index, spp, None);
+                        *l = sample;
+                        rays += r;
+                    }
+                } else {
+                    let along = plan.along_first_bounce();
+                    for (&(k, x, y, index), hit) in traced.iter().zip(hits.iter()) {
+                        let spp = plan.keep(start + k, &gpixels[k]);
+                        let (sample, r) = light(tracer, x, y, hit, index, spp, along, None);
+                        lpixels[k] = sample;
+                        rays += r;
+                    }
+                }
+                let t2 = Instant::now();
+                Traced {
+                    rays,
+                    primary_s: (t1 - t0).as_secs_f64(),
+                    lighting_s: (t2 - t1).as_secs_f64(),
+                }
+            },
+        )
+        .reduce(Traced::default, |a, b| a + b)
+}
+
+/// One pixel's lighting: `spp` samples from `index` (none: empty), the first continuing from
+/// `hit` with direct light `direct` at it when given; returns it and the rays traced.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn light(
+    tracer: &PathTracer,
+    x: u32,
+    y: u32,
+    hit: &PrimaryHit,
+    index: u32,
+    spp: u32,
+    along: bool,
+    direct: Option<Vec3>,
+) -> (LightSample, u64) {
+    if spp == 0 {
+        (LightSample::default(), 0)
+    } else if along {
+        lighting::lighting::<true>(tracer, x, y, hit, index, spp, direct)
+    } else {
+        lighting::lighting::<false>(tracer, x, y, hit, index, spp, direct)
+    }
+}
+
+/// The primary pass alone over the pixels `plan` picks, keeping every pixel's first hit in
+/// `hits` by runs (`None` where a pixel is not traced, whose lighting is emptied). Returns the
+/// rays traced.
+pub fn primary<P: Plan>(
+    gbuffer: &mut GBuffer,
+    lighting: &mut [LightSample],
+    hits: &mut Vec<Vec<Option<PrimaryHit>>>,
+    previous: Option<&Camera>,
+    tracer: &PathTracer,
+    plan: &P,
+) -> u64 {
+    let w = gbuffer.width.max(1) as usize;
+    // Each run's vector keeps its capacity across frames.
+    hits.resize_with(gbuffer.pixels.len().div_ceil(RUN), Vec::new);
+    gbuffer
+        .pixels
+        .par_chunks_mut(RUN)
+        .zip(lighting.par_chunks_mut(RUN))
+        .zip(hits.par_iter_mut())
+        .enumerate()
+        .map_init(
+            scratch,
+            |(cameras, camera_rays, first_hits, _, traced), (b, ((gpixels, lpixels), out))| {
+                let start = b * RUN;
+                out.clear();
+                camera_samples(
+                    tracer,
+                    plan,
+                    start,
+                    run_pixels(start, w).take(gpixels.len()),
+                    cameras,
+                    traced,
+                    |k| lpixels[k] = LightSample::default(),
+                );
+                if !P::EVERY_PIXEL {
+                    out.resize(gpixels.len(), None);
+                }
+                primary_run(
+                    tracer,
+                    previous,
+                    cameras,
+                    camera_rays,
+                    first_hits,
+                    |i, pixel, hit| {
+                        if P::EVERY_PIXEL {
+                            gpixels[i] = pixel;
+                            out.push(Some(hit));
+                        } else {
+                            let k = traced[i].0;
+                            gpixels[k] = pixel;
+                            out[k] = Some(hit);
+                        }
+                    },
+                )
+            },
+        )
+        .sum()
+}
+
+/// The lighting pass over the first hits [`primary`] kept: each traced pixel's samples, the
+/// first one's direct light at its first hit from `direct(pixel, &mut shadow_rays)` where it
+/// gives one (next event estimation elsewhere). Returns the rays traced.
+pub fn lighting<P: Plan>(
+    gbuffer: &GBuffer,
+    lighting: &mut [LightSample],
+    hits: &[Vec<Option<PrimaryHit>>],
+    tracer: &PathTracer,
+    plan: &P,
+    direct: &(impl Fn(usize, &mut u32) -> Option<Vec3> + Sync),
+) -> u64 {
+    let w = gbuffer.width.max(1) as usize;
+    let along = plan.along_first_bounce();
+    lighting
+        .par_chunks_mut(RUN)
+        .zip(hits.par_iter())
+        .enumerate()
+        .map(|(b, (ls, run))| {
+            let mut rays = 0;
+            let start = b * RUN;
+            for (k, ((l, hit), (x, y))) in
+                ls.iter_mut().zip(run).zip(run_pixels(start, w)).enumerate()
+            {
+                let Some(hit) = hit else { continue };
+                let p = start + k;
+                let Some(index) = plan.sample(p) else {
+                    continue;
+                };
+                let spp = plan.keep(p, &gbuffer.pixels[p]);
+                let mut shadow = 0;
+                let d = if spp > 0 {
+                    direct(p, &mut shadow)
+                } else {
+                    None
+                };
+                let (sample, r) = light(tracer, x, y, hit, index, spp, along, d);
+                *l = sample;
+                rays += r + shadow as u64;
+            }
+            rays
+        })
+        .sum()
+}
+
+/// The primary pass over a run's camera samples (drained): their rays traced together
+/// (neighbouring pixels' rays go as packets), then each followed to its first surface;
+/// `emit(i, pixel, hit)` takes the i-th sample's G-buffer pixel and first hit. Returns the
+/// rays traced.
+#[inline(always)]
+fn primary_run(
+    tracer: &PathTracer,
+    previous: Option<&Camera>,
+    cameras: &mut Vec<CameraSample>,
+    camera_rays: &mut Vec<Ray>,
+    first_hits: &mut Vec<Option<Hit>>,
+    mut emit: impl FnMut(usize, GPixel, PrimaryHit),
+) -> u64 {
+    camera_rays.clear();
+    camera_rays.extend(cameras.iter().map(|c| c.ray));
+    first_hits.resize(camera_rays.len(), None);
+    tracer.world.accel.intersect_batch(camera_rays, first_hits);
+    let mut rays = 0;
+    for (i, (sample, &first)) in cameras.drain(..).zip(&*first_hits).enumerate() {
+        let (pixel, hit, r) = gbuffer::primary(tracer, sample, first, previous);
+        emit(i, pixel, hit);
+        rays += r as u64;
+    }
+    rays
+}
+
+/// A stage that lights each pixel's first hit from the whole frame's first hits (ReSTIR's
+/// reservoirs): it runs between the primary and lighting passes, which then are not fused.
+pub trait FirstHitLight: Sync {
+    /// Its passes over the frame's first hits (`hits`, by runs of [`RUN`] pixels; `None`
+    /// where a pixel is not traced), timed into `times`; returns the rays traced.
+    fn prepare(
+        &mut self,
+        tracer: &PathTracer,
+        gbuffer: &GBuffer,
+        hits: &[Vec<Option<PrimaryHit>>],
+        times: &mut Times,
+    ) -> u64;
+    /// The direct light of pixel `pixel`'s first sample at its first hit, which replaces next
+    /// event estimation there (`None`: next event estimation), counting its shadow rays.
+    fn direct(&self, tracer: &PathTracer, pixel: usize, rays: &mut u32) -> Option<Vec3>;
+    /// After the lighting pass: the frame's state becomes the previous frame's.
+    fn finish(&mut self, gbuffer: &GBuffer);
+}
+
+/// The frame's primary and lighting passes over the pixels `plan` picks: fused by runs, or,
+/// with a stage that lights the first hits (`first_hits`), the primary pass over the whole
+/// frame, that stage, then the lighting pass. Timed into `times` (the fused passes' wall time
+/// split in proportion to the thread time each took); returns the rays traced.
+#[allow(clippy::too_many_arguments)]
+pub fn frame<P: Plan>(
+    gbuffer: &mut GBuffer,
+    lighting: &mut [LightSample],
+    hits: &mut Vec<Vec<Option<PrimaryHit>>>,
+    times: &mut Times,
+    previous: Option<&Camera>,
+    tracer: &PathTracer,
+    plan: &P,
+    first_hits: Option<&mut dyn FirstHitLight>,
+) -> u64 {
+    let t = Instant::now();
+    let Some(stage) = first_hits else {
+        let traced = fused(gbuffer, lighting, previous, tracer, plan);
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        let primary_ms =
+            wall * traced.primary_s / (traced.primary_s + traced.lighting_s).max(1e-12);
+        times.add(PRIMARY, primary_ms);
+        times.add(LIGHTING, wall - primary_ms);
+        return traced.rays;
+    };
+    let mut rays = primary(gbuffer, lighting, hits, previous, tracer, plan);
+    times.since(PRIMARY, t);
+    rays += stage.prepare(tracer, gbuffer, hits, times);
+    let t = Instant::now();
+    let light = &*stage;
+    rays += self::lighting(gbuffer, lighting, hits, tracer, plan, &|p, r: &mut u32| {
+        light.direct(tracer, p, r)
+    });
+    stage.finish(gbuffer);
+    times.since(LIGHTING, t);
+    rays
+}
+
+/// The primary visibility pass's name (timings, the menu's heading of the G-buffer's views).
+pub const PRIMARY: &str = "primary";
+/// The lighting pass's name (timings, the menu's heading of its views).
+pub const LIGHTING: &str = "lighting";
+
+/// The primary visibility pass as a stage: its views are the G-buffer's (which the frame
+/// state holds).
+#[derive(Debug, Default)]
+pub struct Primary;
+
+impl Primary {
+    pub const VIEWS: &'static [View] = &[
+        View {
+            name: "albedo",
+            about: "G-buffer: base colour at the first hit",
+            kind: ViewKind::Colour,
+        },
+        View {
+            name: "normal",
+            about: "G-buffer: shading normal (x, y, z mapped from [-1, 1] to [0, 1])",
+            kind: ViewKind::Direction,
+        },
+        View {
+            name: "depth",
+            about: "G-buffer: depth, near white to far black; the sky black",
+            kind: ViewKind::Depth,
+        },
+        View {
+            name: "motion",
+            about: "G-buffer: motion since the previous frame (red: x, green: y; grey is \
+                    still; 32 pixels to full scale)",
+            kind: ViewKind::Motion,
+        },
+        View {
+            name: "roughness",
+            about: "G-buffer: perceptual roughness (grey)",
+            kind: ViewKind::Unit,
+        },
+        View {
+            name: "metallic",
+            about: "G-buffer: metallic (grey)",
+            kind: ViewKind::Unit,
+        },
+    ];
+}
+
+impl Stage for Primary {
+    fn name(&self) -> &'static str {
+        PRIMARY
+    }
+
+    fn views(&self) -> &'static [View] {
+        Self::VIEWS
+    }
+
+    /// The feature itself: base colour, normal in [-1, 1], depth in scene units (the sky
+    /// infinite), motion in pixels as (x, y, 0), roughness, metallic.
+    fn value(&self, frame: &FrameState, view: usize, i: usize) -> Vec3 {
+        let g = &frame.gbuffer.pixels[i];
+        match view {
+            0 => g.albedo,
+            1 => g.normal,
+            2 => Vec3::splat(g.depth),
+            3 => g.motion.extend(0.0),
+            4 => Vec3::splat(g.roughness),
+            _ => Vec3::splat(g.metallic),
+        }
+    }
+}
+
+/// The lighting pass as a stage: its views are this frame's lighting (which the frame state
+/// holds).
+#[derive(Debug, Default)]
+pub struct Lighting;
+
+impl Lighting {
+    pub const VIEWS: &'static [View] = &[
+        View {
+            name: "noisy",
+            about: "this frame's radiance alone (the pipeline's noisy input)",
+            kind: ViewKind::Radiance,
+        },
+        View {
+            name: "frame-direct",
+            about: "this frame's direct light alone (with ReSTIR, what the reservoirs gave)",
+            kind: ViewKind::Radiance,
+        },
+        View {
+            name: "bounce-albedo",
+            about: "base colour at the first non-specular vertex after the first hit (seed \
+                    001's \"texture2\")",
+            kind: ViewKind::Colour,
+        },
+        View {
+            name: "bounce-direction",
+            about: "the direction chosen at the first hit (mapped from [-1, 1] to [0, 1])",
+            kind: ViewKind::Direction,
+        },
+    ];
+}
+
+impl Stage for Lighting {
+    fn name(&self) -> &'static str {
+        LIGHTING
+    }
+
+    fn views(&self) -> &'static [View] {
+        Self::VIEWS
+    }
+
+    fn value(&self, frame: &FrameState, view: usize, i: usize) -> Vec3 {
+        let l = &frame.lighting[i];
+        match view {
+            0 => l.stats.mean(),
+            1 => l.stats.direct.mean,
+            2 => l.bounce.albedo,
+            _ => l.bounce.direction,
+        }
+    }
+}
