@@ -115,18 +115,20 @@ pub struct ConfigArgs {
     /// Adaptive sampling: the measure V of a pixel's noise, luminance (the thesis's Eq. 12:
     /// relative), tonemapped (as displayed), absolute (in radiance, relative to the image's
     /// mean: samples in proportion to the noise) or error (absolute over the pixel's samples:
-    /// the combination's best) [default: luminance].
+    /// the combination's best; the default).
     #[arg(long, value_name = "MEASURE", value_parser = parse_measure)]
     pub adaptive_measure: Option<Measure>,
 
-    /// Adaptive sampling with reprojection: the combination's fix (no pixel past max spp).
-    #[arg(long)]
-    pub adaptive_cap: bool,
+    /// Adaptive sampling: the combination's fix, no pixel past max spp (on by default;
+    /// `--adaptive-cap=false`: the thesis's).
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub adaptive_cap: Option<bool>,
 
     /// Adaptive sampling: every frame traces a uniform frame's number of samples,
-    /// distributed by the pixels' probabilities (not in the thesis).
-    #[arg(long)]
-    pub adaptive_budget: bool,
+    /// distributed by the pixels' probabilities (not in the thesis; on by default,
+    /// `--adaptive-budget=false`: the thesis's frames of one iteration).
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub adaptive_budget: Option<bool>,
 
     /// Seed 000's forward reprojection: keep the samples that stay valid when the camera
     /// moves.
@@ -341,8 +343,8 @@ impl ConfigArgs {
         adaptive.min_spp = self.min_spp.unwrap_or(adaptive.min_spp);
         adaptive.max_spp = self.max_spp.unwrap_or(adaptive.max_spp);
         adaptive.measure = self.adaptive_measure.unwrap_or(adaptive.measure);
-        adaptive.cap |= self.adaptive_cap;
-        adaptive.budget |= self.adaptive_budget;
+        adaptive.cap = self.adaptive_cap.unwrap_or(adaptive.cap);
+        adaptive.budget = self.adaptive_budget.unwrap_or(adaptive.budget);
         reprojection.enabled |= self.reprojection;
         reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
         reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);

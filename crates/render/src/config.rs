@@ -218,6 +218,26 @@ impl Config {
                 format!("one of {}", crate::frame::views::names().join(", ")),
             ));
         }
+        // Seed 000's techniques spread samples over the frames of an epoch and carry the
+        // accumulated history into a new view: without accumulation every frame is an epoch
+        // of its own, which samples every pixel afresh and has no history to carry.
+        for (field, on) in [
+            ("frame.adaptive.enabled", self.frame.adaptive.enabled),
+            (
+                "frame.reprojection.enabled",
+                self.frame.reprojection.enabled,
+            ),
+        ] {
+            if on && !self.frame.accumulate {
+                return Err(err(
+                    field,
+                    &true,
+                    "false when frame.accumulate is false (seed 000 works on the history that \
+                     frames accumulate; without accumulation every frame starts afresh)"
+                        .into(),
+                ));
+            }
+        }
         self.frame.adaptive.validate()?;
         self.frame.reprojection.validate()?;
         self.frame.restir.validate()?;
@@ -237,15 +257,6 @@ impl Config {
                 requirement: other.to_string(),
             },
         })?;
-        if self.frame.restir.enabled
-            && (self.frame.adaptive.enabled || self.frame.reprojection.enabled)
-        {
-            return Err(err(
-                "frame.restir.enabled",
-                &true,
-                "not together with seed 000's adaptive sampling or reprojection (not built)".into(),
-            ));
-        }
         Ok(())
     }
 }

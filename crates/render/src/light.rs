@@ -698,7 +698,7 @@ impl Lights {
             .then_some((sample, g))
     }
 
-    #[inline]
+    #[inline(always)]
     fn triangle_radiance(&self, t: &TriangleLight, bary: Vec2) -> Vec3 {
         let e = &self.emitters[t.emitter as usize];
         match e.texture {

@@ -179,7 +179,7 @@ impl PathTracer<'_> {
 
     /// The camera ray of sample `index` of pixel (`x`, `y`) (box filter: uniform jitter over
     /// the pixel) and the sampler and random stream of the rest of its path.
-    #[inline]
+    #[inline(always)]
     pub fn camera_sample(&self, x: u32, y: u32, index: u32) -> CameraSample {
         let mut sampler = self.pixel_sampler(x, y, index);
         let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();

@@ -44,13 +44,13 @@ impl Surface {
     /// coordinates and the vertex colour (linear RGBA, white without one) there. Opaque and
     /// thin materials are shaded on the side the ray came from (both faces look the same, as
     /// in Cycles); refracting volumes keep their outward normal, so that `wo.z < 0` in the
-    /// shading frame means "from inside". `nm` and `linear` are the hit instance's normal
-    /// matrix (inverse transpose) and linear part.
+    /// shading frame means "from inside". `normal_matrices` and `linear` are the instances'
+    /// normal matrices (inverse transpose) and linear parts.
     #[inline(always)]
     pub fn at(
         scene: &Scene,
-        nm: Mat3,
-        linear: Mat3,
+        normal_matrices: &[Mat3],
+        linear: &[Mat3],
         ray: &Ray,
         hit: &Hit,
     ) -> (Self, [Vec2; 2], Vec4) {
@@ -58,6 +58,7 @@ impl Surface {
         let mesh = &scene.meshes[inst.mesh as usize];
         let idx = mesh.indices[hit.triangle as usize];
         let [a, b, c] = idx.map(|i| mesh.positions[i as usize]);
+        let nm = normal_matrices[hit.instance as usize];
         let (u, v) = (hit.u, hit.v);
         let w = 1.0 - u - v;
         let p_obj = a * w + b * u + c * v;
@@ -83,7 +84,7 @@ impl Surface {
         // the final normal does.
         let mut tangent = mesh.tangents.as_ref().and_then(|ts| {
             let t4 = ts[idx[0] as usize] * w + ts[idx[1] as usize] * u + ts[idx[2] as usize] * v;
-            let t = linear * t4.xyz();
+            let t = linear[hit.instance as usize] * t4.xyz();
             let t = (t - ns * ns.dot(t)).normalize_or_zero();
             (t != Vec3::ZERO).then_some(t)
         });

@@ -126,14 +126,7 @@ impl World {
     /// [`Surface::at`] with this world's instance matrices.
     #[inline(always)]
     fn surface_at(&self, ray: &Ray, hit: &Hit) -> (Surface, [Vec2; 2], Vec4) {
-        let i = hit.instance as usize;
-        Surface::at(
-            &self.scene,
-            self.normal_matrices[i],
-            self.linear[i],
-            ray,
-            hit,
-        )
+        Surface::at(&self.scene, &self.normal_matrices, &self.linear, ray, hit)
     }
 
     /// The shading point of `hit` on `ray` and the material's values there.

@@ -21,13 +21,12 @@ mod common;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use common::{cornell, in_pool, quad};
-use glam::{Mat4, Vec3};
+use common::{cornell, in_pool, textured, textured_view};
+use glam::Vec3;
 use pathlight_render::camera_path::{CameraPath, PathKind};
 use pathlight_render::config::CameraConfig;
 use pathlight_render::frame::{FrameReport, Pipeline};
 use pathlight_render::{Config, World};
-use pathlight_scene::{Environment, Instance, Material};
 
 /// The display modes hashed at the end of each sequence, by name.
 const MODES: [&str; 27] = [
@@ -68,12 +67,12 @@ const CASES: [(&str, &str); 12] = [
     (
         "adaptive",
         "[frame.adaptive]\nenabled = true\nmin_spp = 2\nmax_spp = 8\nmeasure = \"luminance\"\n\
-         budget = false\nskip_empty = true\n",
+         budget = false\nskip_empty = true\ncap = false\n",
     ),
     (
         "adaptive-error-budget",
         "[frame.adaptive]\nenabled = true\nmin_spp = 2\nmax_spp = 8\nmeasure = \"error\"\n\
-         budget = true\n",
+         budget = true\ncap = false\n",
     ),
     ("reprojection", "[frame.reprojection]\nenabled = true\n"),
     (
@@ -92,7 +91,8 @@ const CASES: [(&str, &str); 12] = [
     ),
     (
         "restir-svgf",
-        "[frame.restir]\nenabled = true\n[frame.filter]\nmethod = \"svgf\"\n",
+        "[frame.restir]\nenabled = true\n[frame.filter]\nmethod = \"svgf\"\natrous_kernel = 5\n\
+         svgf_taa = false\nsvgf_converge = false\n",
     ),
     // `experiments/realtime.toml`'s settings when this test was written.
     (
@@ -121,39 +121,6 @@ fn config(toml: &str) -> Config {
     let c = base.with_toml(toml).unwrap();
     c.validate().unwrap();
     c
-}
-
-/// BoxTextured (its base colour a texture) on a floor, under a dim constant sky and a dozen
-/// random point lights.
-fn textured() -> World {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/box-textured");
-    let mut scene =
-        pathlight_scene::load_file(&dir.join("BoxTextured.gltf"), &Default::default()).unwrap();
-    let floor_material = scene.materials.len() as u32;
-    scene
-        .materials
-        .push(Material::lambertian("floor", Vec3::new(0.6, 0.55, 0.5)));
-    scene.meshes.push(quad(floor_material, 3.0, 0.0));
-    scene.instances.push(Instance {
-        mesh: scene.meshes.len() as u32 - 1,
-        transform: Mat4::from_translation(Vec3::new(0.0, -0.5, 0.0))
-            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
-        name: "floor".into(),
-    });
-    scene.environment = Some(Environment::constant(Vec3::new(0.2, 0.25, 0.3)));
-    scene.add_random_point_lights(12, 5);
-    scene.collect_emissive_triangles();
-    World::new(scene, Default::default())
-}
-
-/// The textured scene's first view.
-fn textured_view() -> CameraConfig {
-    CameraConfig {
-        look_from: Some([1.6, 1.1, 2.4]),
-        look_at: Some([0.0, -0.1, 0.0]),
-        fov_y: Some(45.0),
-        ..CameraConfig::default()
-    }
 }
 
 /// 64-bit FNV-1a, written out so that the hashes do not depend on a library's choice.

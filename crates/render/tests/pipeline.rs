@@ -298,6 +298,9 @@ fn skipping_empty_iterations_keeps_the_schedules_decisions() {
                     // Display-scaled V: small everywhere, so the threshold starts far above it.
                     measure: Measure::Tonemapped,
                     skip_empty,
+                    // The thesis's frames of one iteration each.
+                    budget: false,
+                    cap: false,
                     ..AdaptiveConfig::default()
                 },
                 ..FrameConfig::default()

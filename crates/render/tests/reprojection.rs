@@ -581,6 +581,10 @@ fn seed_000_display_modes_show_the_techniques() {
         enabled: true,
         min_spp: 1,
         max_spp: 4,
+        // The thesis's Eq. 12 and frames of one iteration each.
+        measure: pathlight_render::frame::adaptive::Measure::Luminance,
+        budget: false,
+        cap: false,
         ..AdaptiveConfig::default()
     };
     let mut pipeline = warm(&world, &cfg, 6);

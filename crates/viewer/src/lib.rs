@@ -51,6 +51,9 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Esc", "quit"),
 ];
 
+/// The start of the panel's message about a configuration the pipeline refuses.
+const NOT_APPLIED: &str = "settings not applied: ";
+
 /// The display modes on the number keys 1 ... 9, 0.
 const NUMBER_MODES: [DisplayMode; 10] = [
     DisplayMode::FINAL,
@@ -473,9 +476,18 @@ impl eframe::App for Viewer {
         let rect = egui::CentralPanel::no_frame()
             .show(ui, |ui| self.image(ui))
             .inner;
-        // Everything the window changed this pass goes to the render thread.
+        // Everything the window changed this pass goes to the render thread, if it is a
+        // configuration the pipeline accepts (else the panel says why, and the last one stays).
         self.config.camera = self.navigation.camera(&self.config.camera);
-        self.worker.set_config(&self.config);
+        match self.config.validate() {
+            Ok(()) => {
+                if self.message.starts_with(NOT_APPLIED) {
+                    self.message.clear();
+                }
+                self.worker.set_config(&self.config);
+            }
+            Err(e) => self.message = format!("{NOT_APPLIED}{e}"),
+        }
         self.write_state(&ctx, rect);
         self.test_hook(&ctx, rect);
     }

@@ -80,7 +80,7 @@ use pathlight_denoise::{
 use rayon::prelude::*;
 
 use super::accumulation::PixelStats;
-use super::display::{unorm8, View, ViewKind, NONE};
+use super::display::{encode, unorm8, DisplayConfig, View, ViewKind, NONE};
 use super::gbuffer::{GBuffer, GPixel};
 use super::lighting::LightSample;
 use super::stage::Stage;
@@ -748,6 +748,20 @@ impl Stage for Filter {
                 .shares()
                 .get(i)
                 .map_or(Vec3::splat(-1.0), |s| Vec3::new(s[0], s[1], 0.0)),
+        }
+    }
+
+    /// `final` without a filtered image: the history's mean in a loop of its own (the usual
+    /// display of the plain pipeline).
+    fn rgba8(&self, frame: &FrameState, view: usize, display: &DisplayConfig, out: &mut Vec<u8>) {
+        let n = frame.pixels();
+        let paint = |i| self.paint(frame, view, i);
+        if view == 0 && self.image.is_empty() {
+            let mean = |i: usize| frame.history[i].mean();
+            encode(ViewKind::Radiance, n, mean, paint, display, out);
+        } else {
+            let value = |i| self.value(frame, view, i);
+            encode(Self::VIEWS[view].kind, n, value, paint, display, out);
         }
     }
 

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use glam::{Mat4, Vec3, Vec4};
+use pathlight_render::config::CameraConfig;
 use pathlight_render::{Config, World};
 use pathlight_scene::{Camera, Environment, Instance, Material, Mesh, Scene};
 
@@ -120,4 +121,37 @@ pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
         .build()
         .unwrap()
         .install(f)
+}
+
+/// BoxTextured (its base colour a texture) on a floor, under a dim constant sky and a dozen
+/// random point lights.
+pub fn textured() -> World {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/box-textured");
+    let mut scene =
+        pathlight_scene::load_file(&dir.join("BoxTextured.gltf"), &Default::default()).unwrap();
+    let floor_material = scene.materials.len() as u32;
+    scene
+        .materials
+        .push(Material::lambertian("floor", Vec3::new(0.6, 0.55, 0.5)));
+    scene.meshes.push(quad(floor_material, 3.0, 0.0));
+    scene.instances.push(Instance {
+        mesh: scene.meshes.len() as u32 - 1,
+        transform: Mat4::from_translation(Vec3::new(0.0, -0.5, 0.0))
+            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
+        name: "floor".into(),
+    });
+    scene.environment = Some(Environment::constant(Vec3::new(0.2, 0.25, 0.3)));
+    scene.add_random_point_lights(12, 5);
+    scene.collect_emissive_triangles();
+    World::new(scene, Default::default())
+}
+
+/// The textured scene's first view.
+pub fn textured_view() -> CameraConfig {
+    CameraConfig {
+        look_from: Some([1.6, 1.1, 2.4]),
+        look_at: Some([0.0, -0.1, 0.0]),
+        fov_y: Some(45.0),
+        ..CameraConfig::default()
+    }
 }
