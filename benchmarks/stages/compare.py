@@ -6,7 +6,9 @@
 Runs `pathlight bench frame --json` with the real-time preset, each technique alone and
 ReSTIR, alternating the binaries round by round (the host's noise falls on both), and prints
 per configuration the median frame time of each binary and the median of the per-round
-ratios (after / before).
+ratios (after / before). Adaptive sampling and SVGF run with the settings that were their
+defaults before issue 49 (`adaptive.toml`, `svgf.toml` here), which both binaries read the
+same way. Run it from the repository's root.
 """
 import json
 import statistics
@@ -16,11 +18,11 @@ import sys
 CONFIGS = [
     ("plain", []),
     ("preset", ["--config", "experiments/realtime.toml"]),
-    ("adaptive", ["--adaptive"]),
+    ("adaptive", ["--config", "benchmarks/stages/adaptive.toml"]),
     ("reprojection", ["--reprojection"]),
     ("restir", ["--restir"]),
     ("data-driven", ["--filter", "data-driven", "--holes"]),
-    ("svgf", ["--filter", "svgf"]),
+    ("svgf", ["--config", "benchmarks/stages/svgf.toml"]),
 ]
 
 

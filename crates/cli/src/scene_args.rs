@@ -40,6 +40,11 @@ pub struct SceneArgs {
     #[arg(long, value_name = "S", default_value_t = 0)]
     pub point_light_seed: u64,
 
+    /// Multiplier of the random point lights' intensity (1: a surface a quarter of the scene's
+    /// diagonal away receives 1 lux from each).
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    pub point_light_intensity: f32,
+
     /// Refuse scenes with more triangles than this, counted over instances
     /// [default: 100000000].
     #[arg(long, value_name = "N")]
@@ -72,6 +77,7 @@ impl SceneArgs {
             environment_intensity: self.env_intensity,
             point_lights: self.point_lights,
             point_light_seed: self.point_light_seed,
+            point_light_intensity: self.point_light_intensity,
         }
     }
 }
@@ -87,6 +93,7 @@ impl SceneArgs {
             env_intensity: options.environment_intensity,
             point_lights: options.point_lights,
             point_light_seed: options.point_light_seed,
+            point_light_intensity: options.point_light_intensity,
             max_triangles: None,
             max_texture_pixels: None,
         }
@@ -107,6 +114,8 @@ impl SceneArgs {
             self.point_lights.to_string(),
             "--point-light-seed".to_owned(),
             self.point_light_seed.to_string(),
+            "--point-light-intensity".to_owned(),
+            self.point_light_intensity.to_string(),
         ]);
         args
     }
@@ -115,7 +124,7 @@ impl SceneArgs {
     pub fn identity(&self, world: &World) -> String {
         let s = world.scene.stats();
         format!(
-            "{} | {:?} | env {:?} x{} rot {} | +{} lights seed {} | {} triangles, {} materials, {} textures, {} lights",
+            "{} | {:?} | env {:?} x{} rot {} | +{} lights seed {} x{} | {} triangles, {} materials, {} textures, {} lights",
             world.scene.name,
             self.scene,
             self.env,
@@ -123,6 +132,7 @@ impl SceneArgs {
             self.env_rotation,
             self.point_lights,
             self.point_light_seed,
+            self.point_light_intensity,
             s.triangles,
             s.materials,
             s.textures,

@@ -93,8 +93,15 @@ impl Runner<'_> {
             scene_path.as_deref(),
             options.environment.as_deref(),
             &format!(
-                "env rot {} x{} +{} lights",
-                options.environment_rotation, options.environment_intensity, options.point_lights
+                "env rot {} x{} +{} lights{}",
+                options.environment_rotation,
+                options.environment_intensity,
+                options.point_lights,
+                // (Left out at 1, so that earlier references keep their keys.)
+                match options.point_light_intensity {
+                    1.0 => String::new(),
+                    x => format!(" x{x}"),
+                }
             ),
             &format!(
                 "{}: {} triangles, {} materials, {} textures, {} lights, {} emissive triangles",

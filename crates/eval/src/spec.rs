@@ -42,6 +42,9 @@ pub struct Spec {
     /// Random point lights added to the scene.
     #[serde(default)]
     pub point_lights: usize,
+    /// Multiplier of their intensity.
+    #[serde(default = "one_f32")]
+    pub point_light_intensity: f32,
     pub width: u32,
     pub height: u32,
     /// Metrics measured at every budget; the first one is drawn in the error maps.
@@ -83,6 +86,7 @@ pub struct SceneEntry {
     pub environment_rotation: Option<f32>,
     pub environment_intensity: Option<f32>,
     pub point_lights: Option<usize>,
+    pub point_light_intensity: Option<f32>,
     pub width: Option<u32>,
     pub height: Option<u32>,
     pub camera: Option<CameraPath>,
@@ -244,6 +248,9 @@ impl Spec {
                     .environment_intensity
                     .unwrap_or(self.environment_intensity),
                 point_lights: e.point_lights.unwrap_or(self.point_lights),
+                point_light_intensity: e
+                    .point_light_intensity
+                    .unwrap_or(self.point_light_intensity),
                 width: e.width.unwrap_or(self.width),
                 height: e.height.unwrap_or(self.height),
                 camera: e.camera.clone().unwrap_or_else(|| self.camera.clone()),
@@ -319,6 +326,12 @@ impl Spec {
                 b.time_ms
             ));
         }
+        if !(self.point_light_intensity.is_finite() && self.point_light_intensity >= 0.0) {
+            return Err(format!(
+                "point_light_intensity {}: must be finite and >= 0",
+                self.point_light_intensity
+            ));
+        }
         if !(self.environment_rotation.is_finite()
             && self.environment_intensity.is_finite()
             && self.environment_intensity >= 0.0)
@@ -370,6 +383,7 @@ impl Spec {
             environment_rotation: self.environment_rotation,
             environment_intensity: self.environment_intensity,
             point_lights: self.point_lights,
+            point_light_intensity: self.point_light_intensity,
             ..LoadOptions::default()
         }
     }

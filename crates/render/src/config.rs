@@ -88,15 +88,16 @@ pub const MAX_SPP: u32 = 1 << 24;
 
 impl Default for Config {
     fn default() -> Self {
+        let path = PathSettings::default();
         Self {
             width: 640,
             height: 360,
             spp: 1,
-            seed: 0,
-            sampler: SamplerKind::Sobol,
-            max_bounces: None,
-            rr_start: 3,
-            microfacet: Microfacet::Ggx,
+            seed: path.seed,
+            sampler: path.sampler,
+            max_bounces: path.max_bounces,
+            rr_start: path.rr_start,
+            microfacet: path.microfacet,
             light_selection: LightSelection::Power,
             camera: CameraConfig::default(),
             frame: FrameConfig::default(),
@@ -294,5 +295,22 @@ mod tests {
         assert!(!c.frame.reprojection.enabled);
         // The still camera's handover to the data-driven filter needs the accumulated image.
         assert!(c.frame.filter.svgf_still_handover > 0 && c.frame.accumulate);
+        // The many-lights preset is the same with ReSTIR.
+        let m = Config::realtime()
+            .with_toml(include_str!(
+                "../../../experiments/realtime-many-lights.toml"
+            ))
+            .unwrap();
+        m.validate().unwrap();
+        assert!(m.frame.restir.enabled && !c.frame.restir.enabled);
+        let restir = Default::default();
+        let without = Config {
+            frame: FrameConfig {
+                restir,
+                ..m.frame.clone()
+            },
+            ..m
+        };
+        assert_eq!(without, c);
     }
 }

@@ -121,6 +121,19 @@ pub struct PathSettings {
     pub microfacet: Microfacet,
 }
 
+impl Default for PathSettings {
+    /// The configuration's defaults (`Config::default`).
+    fn default() -> Self {
+        Self {
+            seed: 0,
+            sampler: SamplerKind::Sobol,
+            max_bounces: None,
+            rr_start: 3,
+            microfacet: Microfacet::Ggx,
+        }
+    }
+}
+
 /// A path tracer over one world, camera and settings.
 pub struct PathTracer<'a> {
     pub world: &'a World,

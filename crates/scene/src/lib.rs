@@ -50,6 +50,8 @@ pub struct LoadOptions {
     pub point_lights: usize,
     /// Seed of the random point lights' positions.
     pub point_light_seed: u64,
+    /// Multiplier of the random point lights' intensity.
+    pub point_light_intensity: f32,
 }
 
 impl Default for LoadOptions {
@@ -61,6 +63,7 @@ impl Default for LoadOptions {
             environment_intensity: 1.0,
             point_lights: 0,
             point_light_seed: 0,
+            point_light_intensity: 1.0,
         }
     }
 }
@@ -80,7 +83,11 @@ pub fn load(path: Option<&Path>, options: &LoadOptions) -> Result<Scene> {
         )?);
     }
     if options.point_lights > 0 {
-        scene.add_random_point_lights(options.point_lights, options.point_light_seed);
+        scene.add_random_point_lights(
+            options.point_lights,
+            options.point_light_seed,
+            options.point_light_intensity,
+        );
     }
     if scene.is_unlit() && !scene.instances.is_empty() {
         let message = format!(
@@ -90,7 +97,7 @@ pub fn load(path: Option<&Path>, options: &LoadOptions) -> Result<Scene> {
         let mut w = Warnings::default();
         w.push(path.unwrap_or(Path::new(&scene.name)), message);
         scene.warnings.extend(w.messages);
-        scene.add_random_point_lights(DEFAULT_POINT_LIGHTS, options.point_light_seed);
+        scene.add_random_point_lights(DEFAULT_POINT_LIGHTS, options.point_light_seed, 1.0);
     }
     Ok(scene)
 }

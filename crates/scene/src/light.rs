@@ -86,9 +86,14 @@ impl Bounds {
 
 /// `count` point lights at deterministic pseudo-random positions, uniform inside `bounds`, as
 /// seed 004 adds them, all white and equally bright. Each has intensity `(diagonal / 4)^2`
-/// candela, so a surface a quarter of the scene's diagonal away receives 1 lux from it whatever
-/// the scene's units.
-pub fn random_point_lights(count: usize, bounds: &Bounds, seed: u64) -> Vec<PunctualLight> {
+/// candela times `scale`, so a surface a quarter of the scene's diagonal away receives `scale`
+/// lux from it whatever the scene's units.
+pub fn random_point_lights(
+    count: usize,
+    bounds: &Bounds,
+    seed: u64,
+    scale: f32,
+) -> Vec<PunctualLight> {
     if bounds.is_empty() || count == 0 {
         return Vec::new();
     }
@@ -103,7 +108,7 @@ pub fn random_point_lights(count: usize, bounds: &Bounds, seed: u64) -> Vec<Punc
         (z >> 40) as f32 / (1u64 << 24) as f32
     };
     let d = bounds.diagonal();
-    let intensity = (d.length() / 4.0).powi(2).max(f32::MIN_POSITIVE);
+    let intensity = ((d.length() / 4.0).powi(2) * scale).max(f32::MIN_POSITIVE);
     (0..count)
         .map(|i| {
             let t = Vec3::new(next(), next(), next());
@@ -129,9 +134,9 @@ mod tests {
             min: Vec3::new(-1.0, 0.0, 5.0),
             max: Vec3::new(1.0, 2.0, 9.0),
         };
-        let a = random_point_lights(100, &b, 7);
-        assert_eq!(a, random_point_lights(100, &b, 7));
-        assert_ne!(a, random_point_lights(100, &b, 8));
+        let a = random_point_lights(100, &b, 7, 1.0);
+        assert_eq!(a, random_point_lights(100, &b, 7, 1.0));
+        assert_ne!(a, random_point_lights(100, &b, 8, 1.0));
         assert_eq!(a.len(), 100);
         for l in &a {
             assert!(l.position.cmpge(b.min).all() && l.position.cmple(b.max).all());

@@ -129,9 +129,10 @@ impl Scene {
         self.emissive_triangles = out;
     }
 
-    /// Adds `count` random point lights inside the scene's bounds (seed 004's `--point-lights`).
-    pub fn add_random_point_lights(&mut self, count: usize, seed: u64) {
-        let lights = random_point_lights(count, &self.bounds(), seed);
+    /// Adds `count` random point lights inside the scene's bounds (seed 004's `--point-lights`),
+    /// their intensity scaled by `scale` (`--point-light-intensity`).
+    pub fn add_random_point_lights(&mut self, count: usize, seed: u64, scale: f32) {
+        let lights = random_point_lights(count, &self.bounds(), seed, scale);
         self.lights.extend(lights);
     }
 

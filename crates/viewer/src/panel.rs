@@ -15,8 +15,21 @@ use pathlight_render::sampler::SamplerKind;
 
 use crate::navigation::Mode;
 
-/// `experiments/realtime.toml`, compiled in.
-const REALTIME_PRESET: &str = include_str!("../../../experiments/realtime.toml");
+/// The presets the panel offers: button, file, what it is for, the file compiled in.
+const PRESETS: [(&str, &str, &str, &str); 2] = [
+    (
+        "Real-time preset",
+        "experiments/realtime.toml",
+        "the best preset for a moving camera at 30 fps",
+        include_str!("../../../experiments/realtime.toml"),
+    ),
+    (
+        "Many-lights preset",
+        "experiments/realtime-many-lights.toml",
+        "the real-time preset with ReSTIR DI, for scenes with hundreds of lights",
+        include_str!("../../../experiments/realtime-many-lights.toml"),
+    ),
+];
 use crate::{Viewer, SHORTCUTS};
 
 pub fn show(v: &mut Viewer, ui: &mut egui::Ui) {
@@ -103,16 +116,20 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
             v.save_screenshot();
         }
     });
-    if ui
-        .button("Real-time preset")
-        .on_hover_text("experiments/realtime.toml: the best preset for a moving camera at 30 fps")
-        .clicked()
-    {
-        match v.config.with_toml(REALTIME_PRESET) {
-            Ok(c) => v.config = c,
-            Err(e) => v.message = format!("experiments/realtime.toml: {e}"),
+    ui.horizontal(|ui| {
+        for (button, file, what, toml) in PRESETS {
+            if ui
+                .button(button)
+                .on_hover_text(format!("{file}: {what}"))
+                .clicked()
+            {
+                match v.config.with_toml(toml) {
+                    Ok(c) => v.config = c,
+                    Err(e) => v.message = format!("{file}: {e}"),
+                }
+            }
         }
-    }
+    });
 }
 
 /// The display menu: every stage's views under its name, the frame's last stage (the final
@@ -562,6 +579,15 @@ mod tests {
         assert_eq!(menu.len(), pipeline.stages().len());
         for m in crate::NUMBER_MODES {
             assert!(views::find(m.name()).is_some(), "{m}");
+        }
+    }
+
+    /// Every preset the panel offers is a configuration the pipeline accepts.
+    #[test]
+    fn the_presets_are_valid_configurations() {
+        for (_, file, _, toml) in PRESETS {
+            let c = Config::realtime().with_toml(toml).unwrap();
+            c.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
         }
     }
 }

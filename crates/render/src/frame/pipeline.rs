@@ -84,6 +84,7 @@ impl FrameReport {
 }
 
 /// The frame pipeline: the frame state the stages share, and each stage's own state.
+#[derive(Default)]
 pub struct Pipeline {
     /// The configuration in force (as last given).
     config: Config,
@@ -110,11 +111,7 @@ impl Pipeline {
             frame: FrameState::new(config.path_settings()),
             config,
             reset: Some(Change::Settings),
-            rgba: Vec::new(),
-            reprojection: Reprojection::default(),
-            adaptive: Adaptive::default(),
-            restir: Restir::default(),
-            filter: Filter::default(),
+            ..Default::default()
         }
     }
 

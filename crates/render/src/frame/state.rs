@@ -101,6 +101,12 @@ pub struct FrameState {
     pub times: Times,
 }
 
+impl Default for FrameState {
+    fn default() -> Self {
+        Self::new(PathSettings::default())
+    }
+}
+
 impl FrameState {
     /// The state before the first frame, for the path tracer's `settings`.
     pub fn new(settings: PathSettings) -> Self {

@@ -141,7 +141,7 @@ pub fn textured() -> World {
         name: "floor".into(),
     });
     scene.environment = Some(Environment::constant(Vec3::new(0.2, 0.25, 0.3)));
-    scene.add_random_point_lights(12, 5);
+    scene.add_random_point_lights(12, 5, 1.0);
     scene.collect_emissive_triangles();
     World::new(scene, Default::default())
 }

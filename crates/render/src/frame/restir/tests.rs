@@ -325,7 +325,7 @@ fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
 fn mixed_world(n: usize) -> World {
     use pathlight_scene::{PunctualKind, PunctualLight};
     let mut scene = lit_world().scene;
-    scene.add_random_point_lights(n, 7);
+    scene.add_random_point_lights(n, 7, 1.0);
     scene.lights.push(PunctualLight {
         name: "spot".into(),
         kind: PunctualKind::Spot {
