@@ -643,7 +643,7 @@ impl Filter {
     }
 
     /// Between the data-driven filter's refreshes (`refresh_growth`): each pixel's image with
-    /// its shares of its own light ([`Self::keep_refresh`]) as the history has them now, so
+    /// its shares of its own light (`keep_refresh`) as the history has them now, so
     /// that the light a pixel shows as its own (the sky, light sources, where the `sure` blend
     /// gives it back) does not age.
     pub fn refresh_own_light(&mut self, history: &[PixelStats]) {

@@ -373,7 +373,7 @@ impl Receiver {
     }
 
     /// Resampled importance sampling of `count` candidates from the frame's `pool` (whole
-    /// blocks of it, see [`pool`](self::pool)) by their target here, in SIMD lanes compiled
+    /// blocks of it, see [`pool`]) by their target here, in SIMD lanes compiled
     /// for AVX-512 or AVX2 where the processor has them.
     pub fn candidates(
         &self,
@@ -413,7 +413,7 @@ impl Receiver {
 
     /// [`candidates`](Self::candidates) with the targets of a block's point lights and
     /// triangles computed together in a loop without branches, which the compiler turns into
-    /// SIMD lanes ([`block_targets`](Self::block_targets)), the other lights one by one; for
+    /// SIMD lanes (`block_targets`), the other lights one by one; for
     /// the build's baseline instructions.
     pub fn candidates_in_lanes(
         &self,

@@ -10,7 +10,7 @@
 //!
 //! When no stage needs the whole frame's first hits before the lighting pass, the two passes
 //! are fused: a run's first hits go straight from one pass to the other while they are in
-//! cache ([`fused`]). Otherwise ([`primary`], then [`lighting`]) the first hits are kept for
+//! cache ([`fused`]). Otherwise ([`primary`], then [`lighting`](fn@lighting)) the first hits are kept for
 //! the whole frame in [`FrameState::hits`](super::state::FrameState::hits), and the lighting
 //! pass may take each pixel's direct light at its first hit from a stage (ReSTIR's
 //! reservoirs).
