@@ -226,11 +226,13 @@ impl Svgf {
         self.scalar = scalar;
     }
 
-    /// Caps the vectorised passes' lanes at AVX2 (`avx2`) or plain arrays (`portable`)
-    /// instead of the widest the processor has (for tests on processors with AVX-512).
+    /// Caps the vectorised passes' lanes (and its temporal antialiasing's) at AVX2 (`avx2`)
+    /// or plain arrays (`portable`) instead of the widest the processor has (for tests on
+    /// processors with AVX-512).
     #[doc(hidden)]
     pub fn set_lanes(&mut self, lanes: &str) {
         self.planes.isa = crate::simd::Isa::named(lanes);
+        self.taa.set_lanes(lanes);
     }
 
     /// Forgets the history (a cut: the next frame starts afresh).

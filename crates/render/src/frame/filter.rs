@@ -682,6 +682,15 @@ impl Filter {
         self.data_driven.shares()
     }
 
+    /// Caps the filters' lanes at AVX2 (`avx2`) or plain arrays (`portable`) instead of the
+    /// widest the processor has (for tests: the frames of a processor without AVX-512 on one
+    /// with it).
+    #[doc(hidden)]
+    pub fn set_lanes(&mut self, lanes: &str) {
+        self.data_driven.set_lanes(lanes);
+        self.svgf.set_lanes(lanes);
+    }
+
     /// Forgets the output (the filter was switched off).
     pub fn clear(&mut self) {
         self.data_driven.forget_shares();
