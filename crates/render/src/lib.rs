@@ -11,6 +11,7 @@ pub mod config;
 pub mod distribution;
 pub mod error;
 pub mod film;
+pub mod footprint;
 pub mod frame;
 pub mod light;
 pub mod output;
