@@ -21,6 +21,7 @@ pub mod renderer;
 pub mod rpf;
 pub mod sampler;
 pub mod surface;
+pub mod surface_grid;
 pub mod world;
 
 pub use camera::Camera;
