@@ -40,7 +40,7 @@ use glam::{UVec2, Vec2, Vec3};
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::hash;
 
-use crate::footprint::Footprint;
+use crate::footprint::{Footprint, Level};
 use crate::surface::Surface;
 use crate::world::World;
 
@@ -133,14 +133,10 @@ impl SurfaceGrids {
     /// that level (the side the ray came from).
     pub fn cell(&self, surface: &Surface, footprint: Option<&Footprint>, lod_bias: f32) -> Cell {
         let e = self.exponent(surface.instance, surface.triangle);
-        let r0 = (1u32 << e) as f32;
-        let l = footprint.map_or(f32::NAN, |f| f.level(r0, r0));
-        let level = match (l + lod_bias).floor() {
-            x if x >= e as f32 => e,
-            x if x > 0.0 => x as u8,
-            _ => 0,
-        };
-        self.cell_at(surface, level)
+        let r0 = 1u32 << e;
+        let l = footprint.map_or(f32::NAN, |f| f.level(r0 as f32, r0 as f32));
+        let level = Level::of(l, lod_bias, r0, r0, e as u32 + 1).level;
+        self.cell_at(surface, level as u8)
     }
 
     /// The cell a hit falls in at level `level` (clamped to its triangle's levels).

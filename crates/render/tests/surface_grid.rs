@@ -187,3 +187,43 @@ fn every_triangle_has_its_cells_and_each_cell_its_surface() {
         assert!(agree * 10 >= checked * 9, "{rel}: {agree} of {checked}");
     }
 }
+
+/// A hit's cell follows its footprint: a wall twice as far is shaded one level coarser, and
+/// `lod_bias` moves every level by its amount.
+#[test]
+fn the_cells_level_follows_the_footprint() {
+    use glam::Vec3;
+    use pathlight_render::config::CameraConfig;
+    use pathlight_render::footprint::Footprint;
+    use pathlight_render::Config;
+    let world = World::new(
+        pathlight_scene::load(None, &Default::default()).unwrap(),
+        Default::default(),
+    );
+    let grids = SurfaceGrids::new(&world);
+    // The Cornell box's back wall (z = -1.04) seen head on from two distances.
+    let level_at = |z: f32, bias: f32| {
+        let config = Config {
+            width: 64,
+            height: 64,
+            camera: CameraConfig {
+                look_from: Some([0.0, 1.7, z]),
+                look_at: Some([0.0, 1.7, -1.04]),
+                fov_y: Some(10.0),
+                ..CameraConfig::default()
+            },
+            ..Config::default()
+        };
+        let camera = config.render_camera(&world);
+        let ray = camera.ray(glam::Vec2::new(32.0, 32.0), glam::Vec2::splat(0.5));
+        let hit = world.accel.intersect(&ray.ray).unwrap();
+        let s = world.surface(&ray.ray, &hit);
+        assert!((s.ng - Vec3::Z).length() < 1e-3, "the back wall: {}", s.ng);
+        let f = Footprint::at(&world, &ray, &s).unwrap();
+        grids.cell(&s, Some(&f), bias).level
+    };
+    let (near, far) = (level_at(0.96, 0.0), level_at(2.96, 0.0));
+    assert_eq!(far, near + 1, "{near} -> {far}");
+    assert_eq!(level_at(0.96, 2.0), near + 2);
+    assert_eq!(level_at(0.96, -50.0), 0);
+}
