@@ -122,7 +122,7 @@ impl RaySets {
             .map(|(i, hit)| {
                 let mut rng = SplitMix64::for_index(seed, i as u64);
                 let ray = &primary[i];
-                let [p0, p1, p2] = world_triangle(scene, hit.instance, hit.triangle);
+                let [p0, p1, p2] = scene.world_triangle(hit.instance, hit.triangle);
                 let p = p0 * (1.0 - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
                 let mut n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
                 if n == Vec3::ZERO {
@@ -204,14 +204,6 @@ fn camera_ray(camera: &Camera, aspect: f32, x: u32, y: u32, width: u32, height: 
             Ray::new(o, -back.normalize())
         }
     }
-}
-
-/// World-space corners of an instance's triangle, computed as `SceneTriangles` does.
-fn world_triangle(scene: &Scene, instance: u32, triangle: u32) -> [Vec3; 3] {
-    let inst = &scene.instances[instance as usize];
-    let mesh = &scene.meshes[inst.mesh as usize];
-    mesh.indices[triangle as usize]
-        .map(|v| inst.transform.transform_point3(mesh.positions[v as usize]))
 }
 
 /// Moves a surface point off the surface along `n` (unit, on the side the new ray leaves
@@ -310,7 +302,7 @@ impl LightSampler {
                     .partition_point(|&c| c <= u)
                     .min(self.cdf.len() - 1);
                 let e = &scene.emissive_triangles[k];
-                let [a, b, c] = world_triangle(scene, e.instance, e.triangle);
+                let [a, b, c] = scene.world_triangle(e.instance, e.triangle);
                 let (r1, r2) = (rng.f32().sqrt(), rng.f32());
                 a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2)
             }

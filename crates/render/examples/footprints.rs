@@ -56,10 +56,7 @@ fn main() {
                 continue;
             };
             let pixel = f.dpdx.cross(f.dpdy).length();
-            let inst = &world.scene.instances[s.instance as usize];
-            let mesh = &world.scene.meshes[inst.mesh as usize];
-            let [a, b, c] = mesh.indices[s.triangle as usize]
-                .map(|i| inst.transform.transform_point3(mesh.positions[i as usize]));
+            let [a, b, c] = world.scene.world_triangle(s.instance, s.triangle);
             let area = 0.5 * (b - a).cross(c - a).length();
             if pixel > 0.0 && area.is_finite() {
                 let r = area / pixel;

@@ -59,14 +59,9 @@ impl Footprint {
         let py = on_plane(ray.dy_origin, ray.dy_direction, p, n)?;
         let (dpdx, dpdy) = (px - p, py - p);
         let scene = &world.scene;
-        let instance = scene.instances.get(surface.instance as usize)?;
-        let mesh = scene.meshes.get(instance.mesh as usize)?;
-        let idx = *mesh.indices.get(surface.triangle as usize)?;
-        let [a, b, c] = idx.map(|i| {
-            instance
-                .transform
-                .transform_point3(mesh.positions[i as usize])
-        });
+        let [a, b, c] = scene.world_triangle(surface.instance, surface.triangle);
+        let mesh = &scene.meshes[scene.instances[surface.instance as usize].mesh as usize];
+        let idx = mesh.indices[surface.triangle as usize];
         // dp = db1 e1 + db2 e2, solved in the triangle's plane (least squares on the Gram
         // matrix, exact for dp in the plane).
         let (e1, e2) = (b - a, c - a);

@@ -97,12 +97,11 @@ impl SurfaceGrids {
         };
         let mut offsets = Vec::with_capacity(scene.instances.len());
         let mut exponents = Vec::new();
-        for inst in &scene.instances {
+        for (i, inst) in scene.instances.iter().enumerate() {
             offsets.push(exponents.len() as u32);
-            let mesh = &scene.meshes[inst.mesh as usize];
-            exponents.extend(mesh.indices.iter().map(|idx| {
-                let [a, b, c] =
-                    idx.map(|i| inst.transform.transform_point3(mesh.positions[i as usize]));
+            let triangles = scene.meshes[inst.mesh as usize].indices.len() as u32;
+            exponents.extend((0..triangles).map(|t| {
+                let [a, b, c] = scene.world_triangle(i as u32, t);
                 exponent((b - a).cross(c - a).length() * 0.5, base_cell)
             }));
         }
@@ -136,22 +135,16 @@ impl SurfaceGrids {
         let r0 = 1u32 << e;
         let l = footprint.map_or(f32::NAN, |f| f.level(r0 as f32, r0 as f32));
         let level = Level::of(l, lod_bias, r0, r0, e as u32 + 1).level;
-        self.cell_at(surface, level as u8)
+        cell_in(surface, e, level as u8)
     }
 
     /// The cell a hit falls in at level `level` (clamped to its triangle's levels).
     pub fn cell_at(&self, surface: &Surface, level: u8) -> Cell {
-        let e = self.exponent(surface.instance, surface.triangle);
-        let level = level.min(e);
-        let (square, upper) = locate(surface.bary, 1u32 << (e - level));
-        Cell {
-            instance: surface.instance,
-            triangle: surface.triangle,
-            back: !surface.front,
+        cell_in(
+            surface,
+            self.exponent(surface.instance, surface.triangle),
             level,
-            square,
-            upper,
-        }
+        )
     }
 
     /// The barycentrics `(b1, b2)` of `cell`'s centroid.
@@ -166,11 +159,7 @@ impl SurfaceGrids {
     /// cache shades the cell at.
     pub fn surface(&self, world: &World, cell: &Cell) -> Surface {
         let b = self.centroid(cell);
-        let scene = &world.scene;
-        let inst = &scene.instances[cell.instance as usize];
-        let mesh = &scene.meshes[inst.mesh as usize];
-        let [p0, p1, p2] = mesh.indices[cell.triangle as usize]
-            .map(|i| inst.transform.transform_point3(mesh.positions[i as usize]));
+        let [p0, p1, p2] = world.scene.world_triangle(cell.instance, cell.triangle);
         let p = p0 * (1.0 - b.x - b.y) + p1 * b.x + p2 * b.y;
         let n = (p1 - p0).cross(p2 - p0).normalize_or(Vec3::Z);
         // A ray arriving from the cell's side, one unit away.
@@ -196,6 +185,21 @@ fn exponent(area: f32, base_cell: f32) -> u8 {
         return 0;
     }
     (cells.log2().ceil() as u8).min(MAX_EXPONENT)
+}
+
+/// The cell of `surface` at level `level` (clamped to its triangle's) of a triangle of base
+/// resolution `2^e`.
+fn cell_in(surface: &Surface, e: u8, level: u8) -> Cell {
+    let level = level.min(e);
+    let (square, upper) = locate(surface.bary, 1u32 << (e - level));
+    Cell {
+        instance: surface.instance,
+        triangle: surface.triangle,
+        back: !surface.front,
+        level,
+        square,
+        upper,
+    }
 }
 
 /// The cell of barycentrics `b` at resolution `r`: its square and half.

@@ -59,6 +59,16 @@ pub struct SceneStats {
 }
 
 impl Scene {
+    /// The world-space corners of triangle `triangle` of instance `instance` (the mesh's
+    /// object-space corners through the instance's transform).
+    #[inline]
+    pub fn world_triangle(&self, instance: u32, triangle: u32) -> [Vec3; 3] {
+        let inst = &self.instances[instance as usize];
+        self.meshes[inst.mesh as usize]
+            .triangle(triangle as usize)
+            .map(|p| inst.transform.transform_point3(p))
+    }
+
     /// World-space bounds of all instanced geometry.
     pub fn bounds(&self) -> Bounds {
         let mut b = Bounds::EMPTY;

@@ -57,3 +57,26 @@ pub fn lighting<const ALONG_FIRST_BOUNCE: bool>(
         rays,
     )
 }
+
+/// [`lighting`] with the first sample's radiance along its first bounce measured or not
+/// (`along`), and no samples (an empty lighting) when `spp` is 0.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn light(
+    tracer: &PathTracer,
+    x: u32,
+    y: u32,
+    hit: &PrimaryHit,
+    index: u32,
+    spp: u32,
+    along: bool,
+    direct: Option<Vec3>,
+) -> (LightSample, u64) {
+    if spp == 0 {
+        (LightSample::default(), 0)
+    } else if along {
+        lighting::<true>(tracer, x, y, hit, index, spp, direct)
+    } else {
+        lighting::<false>(tracer, x, y, hit, index, spp, direct)
+    }
+}

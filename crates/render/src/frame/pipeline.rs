@@ -178,7 +178,12 @@ impl Pipeline {
             };
             // Seed 000: adaptive sampling's schedule, and the plan.
             let (combination, after_move) = (cfg.reprojection.enabled, reprojection.after_move);
-            above_one = adaptive.prepare(&cfg.adaptive, &f.history, f.width as usize, combination);
+            above_one = adaptive.prepare(
+                &cfg.adaptive,
+                &f.history,
+                f.gbuffer.width as usize,
+                combination,
+            );
             let seed = f.settings.seed;
             let schedule =
                 adaptive.schedule(&cfg.adaptive, &f.history, combination, after_move, seed);

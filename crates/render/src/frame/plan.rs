@@ -18,13 +18,6 @@ pub enum FramePlan<'a> {
     Planned(Planned<'a>),
 }
 
-impl FramePlan<'_> {
-    /// Every pixel is traced from one sample index, `spp` samples each.
-    pub fn is_uniform(&self) -> bool {
-        matches!(self, FramePlan::Uniform(_))
-    }
-}
-
 /// Runs `$body` with `$plan` bound to the frame plan's concrete [`Plan`] (the passes are
 /// generic over it, so that the plain pipeline's loops carry no per-pixel bookkeeping).
 macro_rules! with_plan {

@@ -730,7 +730,7 @@ impl Reprojection {
             world,
             previous,
             camera,
-            frame.width,
+            frame.gbuffer.width,
             config,
             &mut frame.history,
             probability,

@@ -69,10 +69,8 @@ impl Times {
     }
 }
 
-/// What the stages share.
+/// What the stages share (the image's size is the G-buffer's).
 pub struct FrameState {
-    pub width: u32,
-    pub height: u32,
     /// Samples per pixel per frame.
     pub spp: u32,
     /// The path tracer's settings this epoch: epoch 0 uses the configuration's seed, later
@@ -111,8 +109,6 @@ impl FrameState {
     /// The state before the first frame, for the path tracer's `settings`.
     pub fn new(settings: PathSettings) -> Self {
         Self {
-            width: 0,
-            height: 0,
             spp: 1,
             settings,
             camera: None,
@@ -157,7 +153,6 @@ impl FrameState {
         self.spp = spp.max(1);
         let previous = self.camera.replace(camera);
         let resized = (self.gbuffer.width, self.gbuffer.height) != (width, height);
-        (self.width, self.height) = (width, height);
         self.gbuffer.resize(width, height);
         let n = width as usize * height as usize;
         self.history.resize(n, PixelStats::default());

@@ -216,7 +216,8 @@ pub fn fused<P: Plan>(
                     let along = plan.along_first_bounce();
                     for (&(k, x, y, index), hit) in traced.iter().zip(hits.iter()) {
                         let spp = plan.keep(start + k, &gpixels[k]);
-                        let (sample, r) = light(tracer, x, y, hit, index, spp, along, None);
+                        let (sample, r) =
+                            lighting::light(tracer, x, y, hit, index, spp, along, None);
                         lpixels[k] = sample;
                         rays += r;
                     }
@@ -230,29 +231,6 @@ pub fn fused<P: Plan>(
             },
         )
         .reduce(Traced::default, |a, b| a + b)
-}
-
-/// One pixel's lighting: `spp` samples from `index` (none: empty), the first continuing from
-/// `hit` with direct light `direct` at it when given; returns it and the rays traced.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn light(
-    tracer: &PathTracer,
-    x: u32,
-    y: u32,
-    hit: &PrimaryHit,
-    index: u32,
-    spp: u32,
-    along: bool,
-    direct: Option<Vec3>,
-) -> (LightSample, u64) {
-    if spp == 0 {
-        (LightSample::default(), 0)
-    } else if along {
-        lighting::lighting::<true>(tracer, x, y, hit, index, spp, direct)
-    } else {
-        lighting::lighting::<false>(tracer, x, y, hit, index, spp, direct)
-    }
 }
 
 /// The primary pass alone over the pixels `plan` picks, keeping every pixel's first hit in
@@ -349,7 +327,7 @@ pub fn lighting<P: Plan>(
                 } else {
                     None
                 };
-                let (sample, r) = light(tracer, x, y, hit, index, spp, along, d);
+                let (sample, r) = lighting::light(tracer, x, y, hit, index, spp, along, d);
                 *l = sample;
                 rays += r + shadow as u64;
             }
