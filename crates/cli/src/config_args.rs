@@ -164,6 +164,19 @@ pub struct ConfigArgs {
     #[arg(long)]
     pub restir_mis: bool,
 
+    /// Seed 002's texture-space shading cache (`[frame.texture_cache] enabled`; `=false`
+    /// turns off a configuration's).
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub texture_cache: Option<bool>,
+
+    /// Texture cache: both caches' memory in MB [default: 64].
+    #[arg(long, value_name = "MB")]
+    pub texture_cache_budget: Option<u32>,
+
+    /// Texture cache: levels added to the footprint's (coarser texels) [default: 1].
+    #[arg(long, value_name = "LEVELS")]
+    pub lod_bias: Option<f32>,
+
     /// Seed 001's reconstruction filter (`[frame.filter] method`): none, data-driven (of the
     /// accumulated image) or svgf (spatio-temporal, of each frame's samples).
     #[arg(long, value_name = "METHOD", value_parser = parse_filter)]
@@ -354,6 +367,10 @@ impl ConfigArgs {
         restir.candidates = self.candidates.unwrap_or(restir.candidates);
         restir.unbiased |= self.restir_unbiased;
         restir.mis |= self.restir_mis;
+        let cache = &mut c.frame.texture_cache;
+        cache.enabled = self.texture_cache.unwrap_or(cache.enabled);
+        cache.budget_mb = self.texture_cache_budget.unwrap_or(cache.budget_mb);
+        cache.lod_bias = self.lod_bias.unwrap_or(cache.lod_bias);
         let filter = &mut c.frame.filter;
         filter.method = self.filter.unwrap_or(filter.method);
         filter.kernel = self.kernel.unwrap_or(filter.kernel);

@@ -9,6 +9,7 @@ use crate::camera::Camera;
 use crate::frame::adaptive::AdaptiveConfig;
 use crate::frame::reprojection::ReprojectionConfig;
 use crate::frame::restir::RestirConfig;
+use crate::frame::texture_cache::TextureCacheConfig;
 use crate::light::LightSelection;
 use crate::path::PathSettings;
 use crate::sampler::SamplerKind;
@@ -66,6 +67,8 @@ pub struct FrameConfig {
     pub restir: RestirConfig,
     /// Seed 001's reconstruction filter of the accumulated image.
     pub filter: FilterConfig,
+    /// Seed 002's texture-space shading cache.
+    pub texture_cache: TextureCacheConfig,
 }
 
 impl Default for FrameConfig {
@@ -77,6 +80,7 @@ impl Default for FrameConfig {
             reprojection: ReprojectionConfig::default(),
             restir: RestirConfig::default(),
             filter: FilterConfig::default(),
+            texture_cache: TextureCacheConfig::default(),
         }
     }
 }
@@ -115,6 +119,7 @@ impl Config {
             max_bounces: self.max_bounces,
             rr_start: self.rr_start,
             microfacet: self.microfacet,
+            mis_at_last: false,
         }
     }
 
@@ -242,6 +247,7 @@ impl Config {
         self.frame.adaptive.validate()?;
         self.frame.reprojection.validate()?;
         self.frame.restir.validate()?;
+        self.frame.texture_cache.validate()?;
         self.frame.filter.validate().map_err(|e| match e {
             FilterError::Parameter {
                 field,

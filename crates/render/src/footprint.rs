@@ -98,6 +98,16 @@ impl Footprint {
     pub fn level(&self, w: f32, h: f32) -> f32 {
         (w * self.dbdx.length()).min(h * self.dbdy.length()).log2()
     }
+
+    /// The level at which a cell of a grid of base resolution `w x h` over the barycentrics
+    /// covers about a pixel's area: `log2 sqrt(w h |db/dx x db/dy|)`. Eq. 1 takes the finer
+    /// direction, which on a long thin triangle (whose barycentric cells are slivers) gives
+    /// cells far smaller than a pixel across; this measure keeps the cells shaded per pixel
+    /// near one whatever the triangle's shape. Equal to Eq. 1's where the footprint is square
+    /// in the grid.
+    pub fn area_level(&self, w: f32, h: f32) -> f32 {
+        0.5 * (w * h * self.dbdx.perp_dot(self.dbdy).abs()).log2()
+    }
 }
 
 /// A grid's level of detail: which of its levels a footprint shades, and the cells there.
@@ -272,6 +282,12 @@ mod tests {
         assert_eq!(f.level(1024.0, 1024.0), 2.0);
         assert_eq!(f.level(1024.0, 64.0), 2.0);
         assert_eq!(f.level(64.0, 64.0), -2.0);
+        // The area measure: the geometric mean of the two directions where they are
+        // orthogonal.
+        assert!(
+            (f.area_level(1024.0, 1024.0) - 0.5 * (2.0 + 6.0)).abs() < 1e-5,
+            "{f:?}"
+        );
     }
 
     #[test]

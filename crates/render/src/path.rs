@@ -119,6 +119,12 @@ pub struct PathSettings {
     /// First bounce at which Russian roulette may end a path.
     pub rr_start: u32,
     pub microfacet: Microfacet,
+    /// At the last scattering event the bounce limit allows, still trace the BSDF's ray for
+    /// the emission it finds, combined with next event estimation by multiple importance
+    /// sampling (false: next event estimation alone, no ray: cheaper, noisier under broad
+    /// lights such as a sky). The texture cache's pixels, whose path ends at the first hit,
+    /// turn it on.
+    pub mis_at_last: bool,
 }
 
 impl Default for PathSettings {
@@ -130,6 +136,7 @@ impl Default for PathSettings {
             max_bounces: None,
             rr_start: 3,
             microfacet: Microfacet::Ggx,
+            mis_at_last: false,
         }
     }
 }
@@ -443,7 +450,8 @@ impl PathTracer<'_> {
             // add emission found by BSDF sampling. Without a delta lobe, next event
             // estimation alone finds the same light (every emitter is in the light sampler),
             // so it takes the whole weight and no continuation ray is traced.
-            let last = bounce + 1 >= max_bounces && !bsdf.has_delta_lobe();
+            let last =
+                bounce + 1 >= max_bounces && !bsdf.has_delta_lobe() && !self.settings.mis_at_last;
             // Next event estimation.
             let u_light = sampler.next_1d();
             let u_point = sampler.next_2d();

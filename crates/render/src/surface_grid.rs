@@ -127,13 +127,24 @@ impl SurfaceGrids {
         self.exponents.capacity() + self.offsets.capacity() * std::mem::size_of::<u32>()
     }
 
-    /// The cell a hit falls in: the level its footprint asks for (Eq. 1, biased by
-    /// `lod_bias` levels; the base level without a footprint), the cell of its barycentrics at
-    /// that level (the side the ray came from).
-    pub fn cell(&self, surface: &Surface, footprint: Option<&Footprint>, lod_bias: f32) -> Cell {
+    /// The cell a hit falls in: the level its footprint asks for (Eq. 1, or with `area` the
+    /// footprint's area measure [`Footprint::area_level`]; biased by `lod_bias` levels; the
+    /// base level without a footprint), the cell of its barycentrics at that level (the side
+    /// the ray came from).
+    pub fn cell(
+        &self,
+        surface: &Surface,
+        footprint: Option<&Footprint>,
+        lod_bias: f32,
+        area: bool,
+    ) -> Cell {
         let e = self.exponent(surface.instance, surface.triangle);
         let r0 = 1u32 << e;
-        let l = footprint.map_or(f32::NAN, |f| f.level(r0 as f32, r0 as f32));
+        let r = r0 as f32;
+        let l = footprint.map_or(f32::NAN, |f| match area {
+            true => f.area_level(r, r),
+            false => f.level(r, r),
+        });
         let level = Level::of(l, lod_bias, r0, r0, e as u32 + 1).level;
         cell_in(surface, e, level as u8)
     }
@@ -155,13 +166,34 @@ impl SurfaceGrids {
         (cell.square.as_vec2() + Vec2::splat(third)) / r
     }
 
+    /// Cells along each edge of `cell`'s triangle at `cell`'s level.
+    pub fn resolution(&self, cell: &Cell) -> u32 {
+        let e = self.exponent(cell.instance, cell.triangle);
+        1u32 << (e - cell.level.min(e))
+    }
+
     /// The surface at `cell`'s centroid, as a ray from its side would see it: the point the
     /// cache shades the cell at.
     pub fn surface(&self, world: &World, cell: &Cell) -> Surface {
+        let (ray, hit) = self.probe(world, cell);
+        world.surface(&ray, &hit)
+    }
+
+    /// A ray that arrives at `cell`'s centroid from its side (one unit away, along the
+    /// geometric normal) and its hit there: what [`World::surface`] and [`World::shaded`]
+    /// evaluate the cell's surface from.
+    pub fn probe(&self, world: &World, cell: &Cell) -> (Ray, Hit) {
         let b = self.centroid(cell);
         let [p0, p1, p2] = world.scene.world_triangle(cell.instance, cell.triangle);
         let p = p0 * (1.0 - b.x - b.y) + p1 * b.x + p2 * b.y;
-        let n = (p1 - p0).cross(p2 - p0).normalize_or(Vec3::Z);
+        // The geometric normal as the intersector's surfaces have it: the object-space normal
+        // through the instance's normal matrix, which a mirroring transform (negative
+        // determinant) turns against the world-space corners' winding.
+        let mirrored = world.scene.instances[cell.instance as usize]
+            .transform
+            .determinant()
+            < 0.0;
+        let n = (p1 - p0).cross(p2 - p0).normalize_or(Vec3::Z) * if mirrored { -1.0 } else { 1.0 };
         // A ray arriving from the cell's side, one unit away.
         let toward = if cell.back { n } else { -n };
         let ray = Ray::new(p - toward, toward);
@@ -172,7 +204,7 @@ impl SurfaceGrids {
             instance: cell.instance,
             triangle: cell.triangle,
         };
-        world.surface(&ray, &hit)
+        (ray, hit)
     }
 }
 

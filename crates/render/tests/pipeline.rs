@@ -230,8 +230,9 @@ fn every_display_mode_shows_the_box() {
         assert_eq!(pipeline.rgba.len(), 40 * 30 * 4);
         let distinct: std::collections::HashSet<&[u8]> = pipeline.rgba.chunks(4).collect();
         // Uniform here: samples (every pixel has as many), metallic (zero in the box), motion
-        // (the camera is still), seed 000's, seed 004's and seed 001's modes (their techniques
-        // are off; see tests/reprojection.rs, tests/restir.rs and tests/filter.rs).
+        // (the camera is still), seed 000's, seed 004's, seed 001's and seed 002's modes (their
+        // techniques are off; see tests/reprojection.rs, tests/restir.rs, tests/filter.rs and
+        // tests/texture_cache.rs).
         let uniform = [
             "samples",
             "metallic",
@@ -247,6 +248,11 @@ fn every_display_mode_shows_the_box() {
             "variance-direction",
             "variance-texture2",
             "sure-share",
+            "cache-light",
+            "cache-texels",
+            "cache-level",
+            "cache-hits",
+            "cache-shaded",
         ]
         .contains(&name);
         // Roughness: the walls' 1 and the open front's sky.

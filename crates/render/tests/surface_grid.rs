@@ -202,7 +202,7 @@ fn the_cells_level_follows_the_footprint() {
     );
     let grids = SurfaceGrids::new(&world);
     // The Cornell box's back wall (z = -1.04) seen head on from two distances.
-    let level_at = |z: f32, bias: f32| {
+    let level_at = |z: f32, bias: f32, area: bool| {
         let config = Config {
             width: 64,
             height: 64,
@@ -220,10 +220,13 @@ fn the_cells_level_follows_the_footprint() {
         let s = world.surface(&ray.ray, &hit);
         assert!((s.ng - Vec3::Z).length() < 1e-3, "the back wall: {}", s.ng);
         let f = Footprint::at(&world, &ray, &s).unwrap();
-        grids.cell(&s, Some(&f), bias).level
+        grids.cell(&s, Some(&f), bias, area).level
     };
-    let (near, far) = (level_at(0.96, 0.0), level_at(2.96, 0.0));
-    assert_eq!(far, near + 1, "{near} -> {far}");
-    assert_eq!(level_at(0.96, 2.0), near + 2);
-    assert_eq!(level_at(0.96, -50.0), 0);
+    // Eq. 1's measure and the area measure alike.
+    for area in [false, true] {
+        let (near, far) = (level_at(0.96, 0.0, area), level_at(2.96, 0.0, area));
+        assert_eq!(far, near + 1, "{near} -> {far}");
+        assert_eq!(level_at(0.96, 2.0, area), near + 2);
+        assert_eq!(level_at(0.96, -50.0, area), 0);
+    }
 }

@@ -47,6 +47,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
         "G",
         "reconstruction filter (seed 001): none, data-driven, SVGF in turn",
     ),
+    ("T", "texture-space shading cache (seed 002) on or off"),
     ("P", "save the shown frame as a PNG in the current folder"),
     ("Esc", "quit"),
 ];
@@ -251,6 +252,10 @@ impl Viewer {
                         Method::DataDriven => Method::Svgf,
                         Method::Svgf | Method::Rpf => Method::None,
                     };
+                }
+                Key::T => {
+                    let t = &mut self.config.frame.texture_cache;
+                    t.enabled = !t.enabled;
                 }
                 Key::P => self.save_screenshot(),
                 Key::Plus | Key::Equals => self.config.display.exposure *= 2f32.sqrt(),

@@ -8,8 +8,13 @@ use pathlight_render::denoise::{ColourUnits, ColourWeights, DepthUnits, ErrorPai
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::{DisplayMode, View};
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
+use pathlight_render::frame::texture_cache::{
+    CacheFilter, CachedTerms, LodMeasure, Temporal, MAX_KERNEL,
+};
 use pathlight_render::frame::views;
-use pathlight_render::frame::{ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR};
+use pathlight_render::frame::{
+    ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR, TEXTURE_CACHE,
+};
 use pathlight_render::light::LightSelection;
 use pathlight_render::sampler::SamplerKind;
 
@@ -266,6 +271,10 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     restir(c, ui);
     ui.separator();
 
+    ui.label(egui::RichText::new(TEXTURE_CACHE).strong());
+    texture_cache(c, ui);
+    ui.separator();
+
     ui.label(egui::RichText::new(LIGHTING).strong());
     ui.add(egui::Slider::new(&mut c.spp, 1..=64).text("samples per pixel per frame"));
     let mut unlimited = c.max_bounces.is_none();
@@ -393,6 +402,64 @@ fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
     } else if c.frame.adaptive.enabled || c.frame.reprojection.enabled {
         c.frame.restir.enabled = false;
     }
+}
+
+/// Seed 002's texture-space shading cache: its switch and parameters (key `T`).
+fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
+    let t = &mut c.frame.texture_cache;
+    ui.checkbox(
+        &mut t.enabled,
+        "texture-space cache (seed 002): light shaded on surface grids, reused across pixels and frames",
+    );
+    ui.add_enabled_ui(t.enabled, |ui| {
+        ui.horizontal(|ui| {
+            ui.label("cached light");
+            ui.radio_value(&mut t.terms, CachedTerms::Indirect, "indirect");
+            ui.radio_value(&mut t.terms, CachedTerms::All, "direct and indirect");
+        });
+        ui.add(egui::Slider::new(&mut t.lod_bias, -2.0..=4.0).text("level bias (coarser texels)"));
+        ui.horizontal(|ui| {
+            ui.label("level from");
+            ui.radio_value(&mut t.lod, LodMeasure::Area, "footprint area");
+            ui.radio_value(&mut t.lod, LodMeasure::Finer, "finer direction (Eq. 1)");
+        });
+        egui::ComboBox::from_label("texture-space filter")
+            .selected_text(format!("{:?}", t.filter))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut t.filter, CacheFilter::None, "none");
+                ui.selectable_value(&mut t.filter, CacheFilter::Box, "box");
+                ui.selectable_value(&mut t.filter, CacheFilter::Gaussian, "Gaussian");
+            });
+        let mut k = t.kernel;
+        ui.add(egui::Slider::new(&mut k, 1..=MAX_KERNEL).text("filter window (squares, odd)"));
+        t.kernel = k | 1;
+        egui::ComboBox::from_label("temporal reuse")
+            .selected_text(format!("{:?}", t.temporal))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut t.temporal, Temporal::Mean, "mean of all samples");
+                ui.selectable_value(
+                    &mut t.temporal,
+                    Temporal::Exponential,
+                    "exponential (Eq. 6)",
+                );
+                ui.selectable_value(&mut t.temporal, Temporal::None, "none");
+            });
+        ui.add(egui::Slider::new(&mut t.temporal_alpha, 0.0..=0.99).text("Eq. 6 history weight"));
+        ui.add(
+            egui::Slider::new(&mut t.max_count, 1..=4096)
+                .logarithmic(true)
+                .text("samples a cell keeps (mean)"),
+        );
+        ui.add(
+            egui::Slider::new(&mut t.budget_mb, 1..=1024)
+                .logarithmic(true)
+                .text("budget (MB)"),
+        );
+        ui.add(
+            egui::Slider::new(&mut t.min_roughness, 0.0..=1.0)
+                .text("roughness below which pixels bypass"),
+        );
+    });
 }
 
 /// Seed 001's reconstruction filter: the method and its parameters (changing them does not

@@ -21,6 +21,9 @@
 //! lighting      lighting          first hits, plan, direct light      -> lighting (direct /
 //!                                                                        indirect statistics,
 //!                                                                        first bounce)
+//! texture-cache (in lighting)     a cached first hit's footprint,     -> its texel's light
+//!   (seed 002)                    the sample and texel caches            (shaded, filtered on
+//!                                                                        demand), the caches
 //! reprojection  repair            states, G-buffer, lighting          -> lighting (fresh_spp)
 //! history       accumulate        lighting, history (states)          -> history
 //! adaptive      (end of frame)    history                             -> probabilities
@@ -30,8 +33,9 @@
 //! ```
 //!
 //! The primary and lighting passes are fused by runs of pixels ([`trace`]) unless a stage
-//! lights the first hits from the whole frame's (ReSTIR): then the primary pass runs over the
-//! whole frame first. The *plan* ([`plan`]) says which pixels they trace and from which sample
+//! lights the first hits from the whole frame's (ReSTIR) or the lighting pass looks them up in
+//! the texture cache ([`texture_cache`]): then the primary pass runs over the whole frame
+//! first. The *plan* ([`plan`]) says which pixels they trace and from which sample
 //! index: every pixel from `frames * spp` in the plain pipeline; with seed 000's techniques,
 //! each pixel from its own sample count, and with adaptive sampling ([`adaptive`]) only the
 //! pixels its schedule picks. The state the stages share (buffers, cameras, counters, the
@@ -72,6 +76,7 @@ pub mod reprojection;
 pub mod restir;
 pub mod stage;
 pub mod state;
+pub mod texture_cache;
 pub mod trace;
 pub mod views;
 
@@ -82,4 +87,5 @@ pub use pipeline::{FrameReport, Pipeline, PASSES};
 pub use reprojection::REPROJECT;
 pub use restir::{RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL};
 pub use state::PassTime;
+pub use texture_cache::TEXTURE_CACHE;
 pub use trace::{LIGHTING, PRIMARY};

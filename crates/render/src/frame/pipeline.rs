@@ -20,15 +20,17 @@ use super::reprojection::{Reprojection, ReprojectionReport, REPROJECT};
 use super::restir::{Restir, RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL};
 use super::stage::{view_index, Stage};
 use super::state::{Change, FrameState, PassTime, Times};
+use super::texture_cache::{CacheReport, TextureCache, TEXTURE_CACHE};
 use super::trace::{self, FirstHitLight, Lighting, Primary, Uniform, LIGHTING, PRIMARY};
 
 /// Every pass, in the order a frame runs them.
-pub const PASSES: [&str; 9] = [
+pub const PASSES: [&str; 10] = [
     REPROJECT,
     PRIMARY,
     RESTIR,
     RESTIR_TEMPORAL,
     RESTIR_SPATIAL,
+    TEXTURE_CACHE,
     LIGHTING,
     ACCUMULATE,
     FILTER,
@@ -70,6 +72,9 @@ pub struct FrameReport {
     /// `max_spp`; none with `cap`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub probability_above_one: Option<u64>,
+    /// What seed 002's texture cache did (when it is on).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_cache: Option<CacheReport>,
 }
 
 impl FrameReport {
@@ -102,6 +107,8 @@ pub struct Pipeline {
     pub restir: Restir,
     /// Seed 001's reconstruction filters.
     pub filter: Filter,
+    /// Seed 002's texture-space shading cache.
+    pub texture_cache: TextureCache,
 }
 
 impl Pipeline {
@@ -162,6 +169,7 @@ impl Pipeline {
             adaptive,
             restir,
             filter,
+            texture_cache,
             ..
         } = self;
         let cfg = &config.frame;
@@ -169,6 +177,7 @@ impl Pipeline {
         let counts = cfg.adaptive.enabled || cfg.reprojection.enabled;
         let traced = !(cfg.accumulate && cfg.max_frames > 0 && f.frames >= cfg.max_frames);
         let (mut rays, mut samples, mut tau, mut above_one) = (0, 0, None, None);
+        let mut cache_report = None;
         if traced {
             let camera = f.camera.clone().expect("set by start_epoch");
             let tracer = PathTracer {
@@ -203,9 +212,25 @@ impl Pipeline {
             // Primary visibility, seed 004's ReSTIR on the whole frame's first hits, lighting.
             let mut restir = cfg.restir.enabled.then(|| restir.frame(&cfg.restir, index));
             let first_hits = restir.as_mut().map(|r| r as &mut dyn FirstHitLight);
+            // Seed 002's texture cache, looked up (and filled) by the lighting pass.
+            let tc = &cfg.texture_cache;
+            if tc.enabled {
+                texture_cache.prepare(world, tc, f.pixels());
+            }
+            let mut records = std::mem::take(&mut texture_cache.pixels);
+            let cache = (tc.enabled).then(|| texture_cache.frame(tc, f.settings, &camera));
             let previous = f.previous_camera.as_ref();
             let (g, l, hits, times) = (&mut f.gbuffer, &mut f.lighting, &mut f.hits, &mut f.times);
-            rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits));
+            let with_cache = cache.as_ref().map(|c| (c, &mut records[..]));
+            rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits, with_cache));
+            texture_cache.pixels = records;
+            if tc.enabled {
+                let (report, ms) = texture_cache.report();
+                let ms = ms / rayon::current_num_threads() as f64;
+                f.times.add(TEXTURE_CACHE, ms);
+                f.times.add(LIGHTING, -ms);
+                cache_report = Some(report);
+            }
             // Seed 000: the samples reprojected pixels lack (`fresh_spp`).
             let t = Instant::now();
             rays += reprojection.repair(&cfg.reprojection, f, &tracer);
@@ -248,6 +273,7 @@ impl Pipeline {
             reprojection: reprojected,
             tau,
             probability_above_one: above_one,
+            texture_cache: cache_report,
         }
     }
 
@@ -281,16 +307,18 @@ impl Pipeline {
             History::clear(&mut f.history);
         }
         self.restir.start_epoch(change);
+        self.texture_cache.start_epoch(change);
         reprojected
     }
 
     /// The stages, in the frame's order (each with its views: [`super::views::STAGES`]).
-    pub fn stages(&self) -> [&dyn Stage; 7] {
+    pub fn stages(&self) -> [&dyn Stage; 8] {
         [
             &self.reprojection,
             &self.adaptive,
             &Primary,
             &self.restir,
+            &self.texture_cache,
             &Lighting,
             &History,
             &self.filter,

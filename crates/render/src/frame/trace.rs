@@ -29,6 +29,7 @@ use super::gbuffer::{self, GBuffer, GPixel, PrimaryHit};
 use super::lighting::{self, LightSample};
 use super::stage::Stage;
 use super::state::{FrameState, Times};
+use super::texture_cache::{CacheFrame, CachePixel};
 
 /// Pixels per parallel task: a run of pixels in row-major order, small enough that its first
 /// hits stay in the L1/L2 cache between the primary and the lighting pass.
@@ -294,7 +295,8 @@ pub fn primary<P: Plan>(
 
 /// The lighting pass over the first hits [`primary`] kept: each traced pixel's samples, the
 /// first one's direct light at its first hit from `direct(pixel, &mut shadow_rays)` where it
-/// gives one (next event estimation elsewhere). Returns the rays traced.
+/// gives one (next event estimation elsewhere), through the texture cache when there is one
+/// (`cache`, with each pixel's record). Returns the rays traced.
 pub fn lighting<P: Plan>(
     gbuffer: &GBuffer,
     lighting: &mut [LightSample],
@@ -302,14 +304,22 @@ pub fn lighting<P: Plan>(
     tracer: &PathTracer,
     plan: &P,
     direct: &(impl Fn(usize, &mut u32) -> Option<Vec3> + Sync),
+    cache: Option<(&CacheFrame, &mut [CachePixel])>,
 ) -> u64 {
     let w = gbuffer.width.max(1) as usize;
     let along = plan.along_first_bounce();
+    let (cache, records) = match cache {
+        Some((c, r)) => (Some(c), r.chunks_mut(RUN).map(Some).collect()),
+        None => (None, Vec::new()),
+    };
+    let mut records: Vec<Option<&mut [CachePixel]>> = records;
+    records.resize_with(hits.len(), || None);
     lighting
         .par_chunks_mut(RUN)
         .zip(hits.par_iter())
+        .zip(records.into_par_iter())
         .enumerate()
-        .map(|(b, (ls, run))| {
+        .map(|(b, ((ls, run), mut records))| {
             let mut rays = 0;
             let start = b * RUN;
             for (k, ((l, hit), (x, y))) in
@@ -327,7 +337,12 @@ pub fn lighting<P: Plan>(
                 } else {
                     None
                 };
-                let (sample, r) = lighting::light(tracer, x, y, hit, index, spp, along, d);
+                let (sample, r) = match (cache, records.as_deref_mut()) {
+                    (Some(c), Some(rec)) => {
+                        c.light(tracer, x, y, hit, index, spp, along, d, &mut rec[k])
+                    }
+                    _ => lighting::light(tracer, x, y, hit, index, spp, along, d),
+                };
                 *l = sample;
                 rays += r + shadow as u64;
             }
@@ -395,9 +410,10 @@ pub fn frame<P: Plan>(
     tracer: &PathTracer,
     plan: &P,
     first_hits: Option<&mut dyn FirstHitLight>,
+    cache: Option<(&CacheFrame, &mut [CachePixel])>,
 ) -> u64 {
     let t = Instant::now();
-    let Some(stage) = first_hits else {
+    if first_hits.is_none() && cache.is_none() {
         let traced = fused(gbuffer, lighting, previous, tracer, plan);
         let wall = t.elapsed().as_secs_f64() * 1e3;
         let primary_ms =
@@ -405,16 +421,27 @@ pub fn frame<P: Plan>(
         times.add(PRIMARY, primary_ms);
         times.add(LIGHTING, wall - primary_ms);
         return traced.rays;
-    };
+    }
     let mut rays = primary(gbuffer, lighting, hits, previous, tracer, plan);
     times.since(PRIMARY, t);
-    rays += stage.prepare(tracer, gbuffer, hits, times);
+    let mut stage = first_hits;
+    if let Some(stage) = stage.as_deref_mut() {
+        rays += stage.prepare(tracer, gbuffer, hits, times);
+    }
     let t = Instant::now();
-    let light = &*stage;
-    rays += self::lighting(gbuffer, lighting, hits, tracer, plan, &|p, r: &mut u32| {
-        light.direct(tracer, p, r)
-    });
-    stage.finish(gbuffer);
+    let light = stage.as_deref();
+    rays += self::lighting(
+        gbuffer,
+        lighting,
+        hits,
+        tracer,
+        plan,
+        &|p, r: &mut u32| light.and_then(|l| l.direct(tracer, p, r)),
+        cache,
+    );
+    if let Some(stage) = stage {
+        stage.finish(gbuffer);
+    }
     times.since(LIGHTING, t);
     rays
 }

@@ -13,15 +13,17 @@ use super::filter::{Filter, FILTER};
 use super::history::{History, ACCUMULATE};
 use super::reprojection::{Reprojection, REPROJECT};
 use super::restir::{Restir, RESTIR};
+use super::texture_cache::{TextureCache, TEXTURE_CACHE};
 use super::trace::{Lighting, Primary, LIGHTING, PRIMARY};
 
 /// Each stage's name and views, in the frame's order (the pipeline's `stages()` holds the
 /// same stages in the same order: a test checks it).
-pub const STAGES: [(&str, &[View]); 7] = [
+pub const STAGES: [(&str, &[View]); 8] = [
     (REPROJECT, Reprojection::VIEWS),
     (ADAPTIVE, Adaptive::VIEWS),
     (PRIMARY, Primary::VIEWS),
     (RESTIR, Restir::VIEWS),
+    (TEXTURE_CACHE, TextureCache::VIEWS),
     (LIGHTING, Lighting::VIEWS),
     (ACCUMULATE, History::VIEWS),
     (FILTER, Filter::VIEWS),

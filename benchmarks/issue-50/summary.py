@@ -1,0 +1,28 @@
+#!/usr/bin/env python3
+"""Summarise an eval results.json along a camera path: per configuration, the median frame
+time, and the mean and median of each metric over the views from `--from` on (default 0).
+Usage: summary.py RESULTS.json [--from N]"""
+import json
+import statistics
+import sys
+
+path = sys.argv[1]
+start = int(sys.argv[sys.argv.index("--from") + 1]) if "--from" in sys.argv else 0
+d = json.load(open(path))
+rows = {}
+for m in d["measurements"]:
+    if m["view"] < start:
+        continue
+    r = rows.setdefault(m["configuration"], {"ms": [], "metrics": {}})
+    r["ms"].append(m["ms"])
+    for k, v in m["metrics"].items():
+        r["metrics"].setdefault(k, []).append(v)
+metrics = sorted({k for r in rows.values() for k in r["metrics"]})
+print(f"views from {start}; metric: mean (median)")
+print(f"{'configuration':28} {'ms':>8} " + " ".join(f"{k:>18}" for k in metrics))
+for name, r in rows.items():
+    cells = []
+    for k in metrics:
+        v = r["metrics"].get(k, [])
+        cells.append(f"{statistics.mean(v):8.4f} ({statistics.median(v):7.4f})" if v else " " * 18)
+    print(f"{name:28} {statistics.median(r['ms']):8.1f} " + " ".join(cells))

@@ -1,0 +1,281 @@
+//! Seed 002's texture-space cache in the frame pipeline: every block shaded once per frame on
+//! two threads (counted against the table), frames independent of the thread count, a white
+//! furnace that converges through the cache, the Cornell box converging to the reference path
+//! tracer's image within a bound set by the texel size, a cache too small for the frame that
+//! evicts and shades without it but never mixes cells' light, and the cache's switch off
+//! leaving every frame as it was.
+
+mod common;
+
+use common::{config, cornell, in_pool, quad, scene, sphere, world};
+use glam::Vec3;
+use pathlight_render::camera_path::{CameraPath, PathKind};
+use pathlight_render::frame::texture_cache::{CacheFilter, CacheReport, CachedTerms};
+use pathlight_render::frame::Pipeline;
+use pathlight_render::renderer::render;
+use pathlight_render::{Config, World};
+use pathlight_scene::Material;
+
+/// `base` with the cache on, its filter and terms.
+fn cached(base: &Config, filter: CacheFilter, terms: CachedTerms) -> Config {
+    let mut c = base.clone();
+    let t = &mut c.frame.texture_cache;
+    t.enabled = true;
+    t.filter = filter;
+    t.terms = terms;
+    c.validate().unwrap();
+    c
+}
+
+/// What `frames` frames of `cfg` gave (the camera moving along a short orbit when `moving`):
+/// every frame's image, the cache's reports, and the sample blocks the table holds as shaded
+/// at each frame.
+fn run(
+    world: &World,
+    cfg: &Config,
+    frames: usize,
+    moving: bool,
+) -> (Vec<Vec<Vec3>>, Vec<CacheReport>, Vec<usize>) {
+    let views = if moving {
+        let path = CameraPath {
+            path: PathKind::Orbit,
+            degrees: 6.0,
+            steps: frames as u32,
+            frames_per_view: 1,
+            ..CameraPath::default()
+        };
+        world.path_views(&path)
+    } else {
+        vec![cfg.camera.clone(); frames]
+    };
+    let mut pipeline = Pipeline::new(cfg.clone());
+    let (mut images, mut reports, mut blocks) = (Vec::new(), Vec::new(), Vec::new());
+    for view in views.into_iter().take(frames) {
+        let c = Config {
+            camera: view,
+            ..cfg.clone()
+        };
+        pipeline.set_config(&c);
+        let report = pipeline.render_frame(world);
+        images.push(pipeline.image());
+        reports.push(report.texture_cache.expect("the cache is on"));
+        blocks.push(pipeline.texture_cache.blocks_at_current_frame());
+    }
+    (images, reports, blocks)
+}
+
+#[test]
+fn every_block_is_shaded_once_per_frame_and_frames_do_not_depend_on_the_thread_count() {
+    let world = cornell();
+    let base = Config {
+        max_bounces: Some(2),
+        ..config(48, 32, 1)
+    };
+    for filter in [CacheFilter::None, CacheFilter::Gaussian] {
+        for terms in [CachedTerms::Indirect, CachedTerms::All] {
+            for moving in [false, true] {
+                let cfg = cached(&base, filter, terms);
+                let one = in_pool(1, || run(&world, &cfg, 4, moving));
+                let two = in_pool(2, || run(&world, &cfg, 4, moving));
+                let name = format!("{filter:?} {terms:?} moving {moving}");
+                for (f, (report, blocks)) in two.1.iter().zip(&two.2).enumerate() {
+                    assert!(report.cells_shaded > 0, "{name}: frame {f} shaded nothing");
+                    assert_eq!(report.uncached, 0, "{name}: frame {f}");
+                    assert_eq!(
+                        report.blocks_shaded as usize, *blocks,
+                        "{name}: frame {f}: blocks shaded against blocks in the table"
+                    );
+                }
+                assert_eq!(one.1, two.1, "{name}: the reports");
+                for (f, (a, b)) in one.0.iter().zip(&two.0).enumerate() {
+                    assert!(a == b, "{name}: frame {f} differs between 1 and 2 threads");
+                    assert!(a.iter().all(|p| p.is_finite()), "{name}: frame {f}");
+                }
+            }
+        }
+    }
+}
+
+/// A white sphere above a white floor under a uniform sky of radiance 1: every pixel's
+/// expected value is 1, also through the cache (its texels hold the same light everywhere).
+#[test]
+fn the_white_furnace_converges_through_the_cache() {
+    let white = Material::lambertian("white", Vec3::ONE);
+    let mut floor = quad(0, 2.0, 0.0);
+    for p in &mut floor.positions {
+        *p = Vec3::new(p.x, -1.0, p.y);
+    }
+    floor.normals = Some(vec![Vec3::Y; 4]);
+    let mut ball = sphere(0, 3);
+    ball.normals = None;
+    let world = world(scene(
+        vec![ball, floor],
+        vec![white],
+        Some(Vec3::ONE),
+        Vec3::new(0.0, 0.5, 4.0),
+    ));
+    let base = Config {
+        max_bounces: None,
+        ..config(32, 32, 1)
+    };
+    for (filter, terms) in [
+        (CacheFilter::None, CachedTerms::Indirect),
+        (CacheFilter::None, CachedTerms::All),
+        (CacheFilter::Gaussian, CachedTerms::All),
+    ] {
+        let cfg = cached(&base, filter, terms);
+        let (images, _, _) = run(&world, &cfg, 64, false);
+        let last = images.last().unwrap();
+        let mean = last.iter().map(|p| p.element_sum() / 3.0).sum::<f32>() / last.len() as f32;
+        // 4x4-pixel blocks' means.
+        let worst = (0..64)
+            .map(|b| {
+                let (bx, by) = (b % 8, b / 8);
+                let s = (0..16)
+                    .map(|k| last[(by * 4 + k / 4) * 32 + bx * 4 + k % 4].element_sum() / 3.0)
+                    .sum::<f32>();
+                (s / 16.0 - 1.0).abs()
+            })
+            .fold(0.0f32, f32::max);
+        eprintln!("{filter:?} {terms:?}: mean {mean}, worst 4x4 block {worst}");
+        assert!(
+            (mean - 1.0).abs() < 0.01,
+            "{filter:?} {terms:?}: mean {mean}"
+        );
+        assert!(worst < 0.1, "{filter:?} {terms:?}: worst block {worst}");
+    }
+}
+
+/// Still frames through the cache (no filter) converge to the reference path tracer's image:
+/// the image's mean within 1%, and each 8x8 block within a bound set by the texel size
+/// (light varies within a texel near corners and contact shadows).
+#[test]
+fn the_cached_cornell_box_converges_to_the_reference() {
+    let world = cornell();
+    let base = Config {
+        max_bounces: Some(2),
+        ..config(48, 48, 1)
+    };
+    let reference = {
+        let cfg = Config {
+            spp: 512,
+            seed: 77,
+            ..base.clone()
+        };
+        let film = render(&world, &cfg.render_camera(&world), &cfg);
+        film.pixels.iter().map(|p| p.mean).collect::<Vec<_>>()
+    };
+    let mut plain = base.clone();
+    plain.frame.texture_cache.enabled = false;
+    for terms in [None, Some(CachedTerms::Indirect), Some(CachedTerms::All)] {
+        let cfg = match terms {
+            Some(terms) => cached(&base, CacheFilter::None, terms),
+            None => plain.clone(),
+        };
+        let mut pipeline = Pipeline::new(cfg.clone());
+        for _ in 0..192 {
+            pipeline.render_frame(&world);
+        }
+        let image = &pipeline.image();
+        let sum = |v: &[Vec3]| v.iter().map(|p| p.element_sum()).sum::<f32>();
+        let ratio = sum(image) / sum(&reference);
+        let mut worst = 0.0f32;
+        for by in 0..6 {
+            for bx in 0..6 {
+                let block = |v: &[Vec3]| {
+                    (0..64)
+                        .map(|k| v[(by * 8 + k / 8) * 48 + bx * 8 + k % 8].element_sum())
+                        .sum::<f32>()
+                };
+                let (a, b) = (block(image), block(&reference));
+                worst = worst.max((a - b).abs() / b.max(1e-3));
+            }
+        }
+        // (The plain pipeline's own frames: its noise at 192 samples.)
+        eprintln!("{terms:?}: mean ratio {ratio}, worst 8x8 block {worst}");
+        assert!((ratio - 1.0).abs() < 0.01, "{terms:?}: ratio {ratio}");
+        assert!(worst < 0.12, "{terms:?}: worst block {worst}");
+    }
+}
+
+/// A cache of 1 MB for a frame that needs more: blocks are shaded without it (counted), and
+/// the image stays what a large cache gives, within noise: no cell reads another's light.
+#[test]
+fn a_small_cache_evicts_but_never_mixes_cells() {
+    let world = cornell();
+    let base = Config {
+        max_bounces: Some(2),
+        ..config(320, 240, 1)
+    };
+    let mut small = cached(&base, CacheFilter::None, CachedTerms::All);
+    small.frame.texture_cache.budget_mb = 1;
+    small.frame.texture_cache.lod_bias = -2.0;
+    let mut large = small.clone();
+    large.frame.texture_cache.budget_mb = 256;
+    let (a, ra, _) = run(&world, &small, 6, false);
+    let (b, rb, _) = run(&world, &large, 6, false);
+    assert!(
+        ra.iter().any(|r| r.uncached > 0),
+        "the small cache never overflowed: {ra:?}"
+    );
+    assert!(rb.iter().all(|r| r.uncached == 0), "{rb:?}");
+    let mean = |v: &[Vec3]| v.iter().map(|p| p.element_sum()).sum::<f32>() / v.len() as f32;
+    let (ma, mb) = (mean(a.last().unwrap()), mean(b.last().unwrap()));
+    eprintln!(
+        "small {ma}, large {mb}, uncached {:?}",
+        ra.iter().map(|r| r.uncached).collect::<Vec<_>>()
+    );
+    assert!((ma / mb - 1.0).abs() < 0.02, "small {ma}, large {mb}");
+}
+
+/// The cache's settings are checked.
+#[test]
+fn bad_cache_settings_are_refused() {
+    for toml in [
+        "[frame.texture_cache]\nkernel = 4\n",
+        "[frame.texture_cache]\nkernel = 99\n",
+        "[frame.texture_cache]\nbudget_mb = 0\n",
+        "[frame.texture_cache]\ntemporal_alpha = 1.0\n",
+        "[frame.texture_cache]\nlod_bias = nan\n",
+        "[frame.texture_cache]\nmax_count = 0\n",
+        "[frame.texture_cache]\nmin_roughness = 2.0\n",
+    ] {
+        let c = Config::default().with_toml(toml).unwrap();
+        let e = c.validate().unwrap_err();
+        assert!(e.to_string().contains("texture_cache"), "{toml}: {e}");
+    }
+    assert!(Config::default()
+        .with_toml("[frame.texture_cache]\nfilter = \"bilateral\"\n")
+        .is_err());
+}
+
+/// With the cache on, its views show it: texels of many colours, cells shaded, texels found
+/// and filtered, the cached light.
+#[test]
+fn the_cache_views_show_the_cache() {
+    use pathlight_render::frame::display::DisplayMode;
+    let world = cornell();
+    let cfg = cached(
+        &config(40, 30, 1),
+        CacheFilter::Gaussian,
+        CachedTerms::Indirect,
+    );
+    let mut pipeline = Pipeline::new(cfg.clone());
+    pipeline.render_frame(&world);
+    for (name, least) in [
+        ("cache-light", 8),
+        ("cache-texels", 50),
+        ("cache-level", 2),
+        ("cache-hits", 2),
+        ("cache-shaded", 2),
+    ] {
+        let mut rgba = Vec::new();
+        pipeline.rgba8(&DisplayMode::named(name), &cfg.display, &mut rgba);
+        let distinct: std::collections::HashSet<&[u8]> = rgba.chunks(4).collect();
+        assert!(
+            distinct.len() >= least,
+            "{name}: {} colours",
+            distinct.len()
+        );
+    }
+}
