@@ -171,7 +171,7 @@ pub struct ConfigArgs {
 
     /// Texture cache: both caches' memory in MB [default: 64].
     #[arg(long, value_name = "MB")]
-    pub texture_cache_budget: Option<u32>,
+    pub texture_cache_budget: Option<f32>,
 
     /// Texture cache: levels added to the footprint's (coarser texels) [default: 1].
     #[arg(long, value_name = "LEVELS")]

@@ -169,7 +169,12 @@ fn the_cached_cornell_box_converges_to_the_reference() {
     plain.frame.texture_cache.enabled = false;
     for terms in [None, Some(CachedTerms::Indirect), Some(CachedTerms::All)] {
         let cfg = match terms {
-            Some(terms) => cached(&base, CacheFilter::None, terms),
+            Some(terms) => {
+                // Every cell shaded at every frame: the cache's own convergence.
+                let mut c = cached(&base, CacheFilter::None, terms);
+                c.frame.texture_cache.reshade = 0.0;
+                c
+            }
             None => plain.clone(),
         };
         let mut pipeline = Pipeline::new(cfg.clone());
@@ -208,10 +213,10 @@ fn a_small_cache_evicts_but_never_mixes_cells() {
         ..config(320, 240, 1)
     };
     let mut small = cached(&base, CacheFilter::None, CachedTerms::All);
-    small.frame.texture_cache.budget_mb = 1;
+    small.frame.texture_cache.budget_mb = 1.0;
     small.frame.texture_cache.lod_bias = -2.0;
     let mut large = small.clone();
-    large.frame.texture_cache.budget_mb = 256;
+    large.frame.texture_cache.budget_mb = 256.0;
     let (a, ra, _) = run(&world, &small, 6, false);
     let (b, rb, _) = run(&world, &large, 6, false);
     assert!(
@@ -235,6 +240,8 @@ fn bad_cache_settings_are_refused() {
         "[frame.texture_cache]\nkernel = 4\n",
         "[frame.texture_cache]\nkernel = 99\n",
         "[frame.texture_cache]\nbudget_mb = 0\n",
+        "[frame.texture_cache]\nreshade = -1\n",
+        "[frame.texture_cache]\nshrink = 3\n",
         "[frame.texture_cache]\ntemporal_alpha = 1.0\n",
         "[frame.texture_cache]\nlod_bias = nan\n",
         "[frame.texture_cache]\nmax_count = 0\n",

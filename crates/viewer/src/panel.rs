@@ -444,14 +444,22 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 );
                 ui.selectable_value(&mut t.temporal, Temporal::None, "none");
             });
+        ui.add(
+            egui::Slider::new(&mut t.shrink, 0.0..=2.0)
+                .text("filter narrows with samples (exponent)"),
+        );
         ui.add(egui::Slider::new(&mut t.temporal_alpha, 0.0..=0.99).text("Eq. 6 history weight"));
+        ui.add(
+            egui::Slider::new(&mut t.reshade, 0.0..=16.0)
+                .text("reshade rate (a cell of n samples: reshade / n a frame; 0: every frame)"),
+        );
         ui.add(
             egui::Slider::new(&mut t.max_count, 1..=4096)
                 .logarithmic(true)
                 .text("samples a cell keeps (mean)"),
         );
         ui.add(
-            egui::Slider::new(&mut t.budget_mb, 1..=1024)
+            egui::Slider::new(&mut t.budget_mb, 0.1..=1024.0)
                 .logarithmic(true)
                 .text("budget (MB)"),
         );

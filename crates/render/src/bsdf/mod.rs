@@ -694,6 +694,55 @@ impl Bsdf {
             && (self.trans_delta || self.w_trans == 0.0)
     }
 
+    /// The directional albedo at `wo` (the fraction of light from a uniform surround that it
+    /// reflects or transmits towards `wo`), for energy: the diffuse lobe exactly (`w_diffuse
+    /// base (1 - F(wo))`, its normalisation's integral), the rough specular reflection by one
+    /// sample of its microfacet normals per entry of `u` (`F D G2 |wo.m| / (wo.z pdf(m))`:
+    /// `F G2 / G1` with GGX's visible normals, nearly constant), a smooth one exactly, the
+    /// transmission as [`albedo`](Self::albedo) has it. Unbiased where it samples.
+    pub fn directional_albedo(&self, wo: Vec3, u: &[Vec2]) -> Vec3 {
+        if self.lambertian {
+            return if wo.z != 0.0 && wo.z.is_finite() {
+                self.base * self.diffuse_norm
+            } else {
+                Vec3::ZERO
+            };
+        }
+        let Some(lo) = self.lobes(wo) else {
+            return Vec3::ZERO;
+        };
+        let diel_t = lo.diel_t.clamp(0.0, 1.0);
+        let mut a = self.base * ((self.w_diffuse + self.w_trans) * diel_t);
+        if !self.has_spec {
+            return a;
+        }
+        if self.smooth || u.is_empty() {
+            return a + lo.spec_f;
+        }
+        let mut spec = Vec3::ZERO;
+        for &u in u {
+            let m = self.ndf.sample_m(lo.wo_up, u);
+            if m.z <= 0.0 {
+                continue;
+            }
+            let c = lo.wo_up.dot(m);
+            let wi = reflect(lo.wo_up, m);
+            let pdf = self.ndf.pdf_m_with(lo.wo_up, lo.lambda_o, m);
+            if c <= 0.0 || wi.z <= 0.0 || !positive(pdf) {
+                continue;
+            }
+            let g2 = self.ndf.g2_with(lo.lambda_o, wi);
+            spec += self.spec_fresnel(c.min(1.0), lo.etap)
+                * (self.ndf.d(m) * g2 * c / (lo.wo_up.z * pdf));
+        }
+        a += spec / u.len() as f32;
+        if a.is_finite() {
+            a
+        } else {
+            Vec3::ZERO
+        }
+    }
+
     /// A cheap estimate of the directional albedo at `wo` (Fresnel at the macro normal, no
     /// masking), e.g. for albedo AOVs and denoisers. Not exact: do not use it for energy.
     pub fn albedo(&self, wo: Vec3) -> Vec3 {

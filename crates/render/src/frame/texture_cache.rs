@@ -151,8 +151,8 @@ pub enum LodMeasure {
 #[serde(default, deny_unknown_fields)]
 pub struct TextureCacheConfig {
     pub enabled: bool,
-    /// Both caches' memory, in MB (70% samples, 30% texels).
-    pub budget_mb: u32,
+    /// Both caches' memory, in MB (70% samples, 30% texels; fractions allowed).
+    pub budget_mb: f32,
     /// Levels added to Eq. 1's (coarser texels: fewer cells shaded).
     pub lod_bias: f32,
     pub filter: CacheFilter,
@@ -164,6 +164,12 @@ pub struct TextureCacheConfig {
     pub temporal: Temporal,
     /// With `temporal = "mean"`: a cell stops being shaded once it has this many samples.
     pub max_count: u32,
+    /// With `temporal = "mean"`: a block whose cells hold `n` samples on average is shaded
+    /// again at a frame with probability `reshade / n` (decided by a hash of the block and
+    /// the frame; 0: at every frame it is needed, as the paper): new cells converge at once,
+    /// cells seen for a while take fewer samples as their error falls, and a camera that moves
+    /// slowly pays for what it newly sees.
+    pub reshade: f32,
     /// The filter narrows as its texels' cells gather samples: its width (the Gaussian's
     /// deviation, the box's radius) times `n^-shrink` for cells of `n` samples on average (0:
     /// the paper's fixed window; its bias stays as the noise goes).
@@ -180,15 +186,16 @@ impl Default for TextureCacheConfig {
     fn default() -> Self {
         Self {
             enabled: false,
-            budget_mb: 64,
+            budget_mb: 64.0,
             lod_bias: 1.0,
             filter: CacheFilter::Gaussian,
-            kernel: 13,
+            kernel: 9,
             temporal_alpha: 0.7,
-            terms: CachedTerms::Indirect,
+            terms: CachedTerms::All,
             temporal: Temporal::Mean,
             max_count: 256,
-            shrink: 0.0,
+            reshade: 2.0,
+            shrink: 0.5,
             lod: LodMeasure::Area,
             min_roughness: 0.3,
         }
@@ -197,11 +204,11 @@ impl Default for TextureCacheConfig {
 
 impl TextureCacheConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
-        if !(1..=65536).contains(&self.budget_mb) {
+        if !(0.01..=65536.0).contains(&self.budget_mb) {
             return Err(ConfigError::new(
                 "frame.texture_cache.budget_mb",
                 self.budget_mb,
-                "between 1 and 65536",
+                "between 0.01 and 65536",
             ));
         }
         if !(self.lod_bias.is_finite() && (-8.0..=16.0).contains(&self.lod_bias)) {
@@ -230,6 +237,13 @@ impl TextureCacheConfig {
                 "frame.texture_cache.shrink",
                 self.shrink,
                 "in [0, 2]",
+            ));
+        }
+        if !(self.reshade.is_finite() && self.reshade >= 0.0) {
+            return Err(ConfigError::new(
+                "frame.texture_cache.reshade",
+                self.reshade,
+                "finite and at least 0",
             ));
         }
         if self.max_count == 0 {
@@ -580,7 +594,7 @@ pub struct TextureCache {
     grids: Option<(usize, usize, SurfaceGrids)>,
     samples: Table,
     texels: Table,
-    /// The tables' configuration (budget, channels): a change reallocates them.
+    /// The tables' configuration (budget's bits, channels): a change reallocates them.
     layout: (u32, usize),
     /// Frames the cache has served (its slots' frame stamps; 0: never).
     frame: u32,
@@ -652,9 +666,9 @@ impl TextureCache {
             self.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
             self.clear = true;
         }
-        let layout = (cfg.budget_mb, cfg.channels());
+        let layout = (cfg.budget_mb.to_bits(), cfg.channels());
         if self.layout != layout || self.samples.slots() == 0 {
-            let bytes = cfg.budget_mb as usize * (1 << 20);
+            let bytes = (cfg.budget_mb as f64 * (1 << 20) as f64) as usize;
             self.samples = Table::new(bytes * 7 / 10, CELLS * (1 + layout.1));
             self.texels = Table::new(bytes * 3 / 10, SQUARES * layout.1);
             self.layout = layout;
@@ -1000,6 +1014,19 @@ impl CacheFrame<'_> {
         let stride = 1 + ch;
         let world = tracer.world;
         let mut cells = 0;
+        if self.cfg.temporal == Temporal::Mean && self.cfg.reshade > 0.0 {
+            let (mut sum, mut n) = (0.0f32, 0u32);
+            for k in (0..CELLS).filter(|&k| block.cell(k).is_some()) {
+                sum += data[k * stride];
+                n += 1;
+            }
+            let mean = sum / n.max(1) as f32;
+            let u = (hash(&[block.key(), self.cache.frame as u64, self.seed]) >> 40) as f32
+                / (1u64 << 24) as f32;
+            if mean > 0.0 && u * mean >= self.cfg.reshade {
+                return;
+            }
+        }
         for k in 0..CELLS {
             let Some(cell) = block.cell(k) else { continue };
             let d = &mut data[k * stride..(k + 1) * stride];
@@ -1191,36 +1218,22 @@ impl CacheFrame<'_> {
     }
 }
 
-/// Samples of [`directional_albedo`].
+/// Samples of the specular lobe in [`directional_albedo`].
 const ALBEDO_SAMPLES: usize = 2;
 
-/// An unbiased estimate of the BSDF's directional albedo at `wo` (`f cos / pdf` averaged over
-/// [`ALBEDO_SAMPLES`] of its own samples, stratified and randomly shifted by `rng`'s stream):
-/// what the pixel multiplies the cached light by. [`crate::bsdf::Bsdf::albedo`], Fresnel at
-/// the macro normal without masking, overestimates rough specular layers at grazing angles
-/// (by 12% on the interior's walls); two samples cost a fraction of four for the same error
-/// at equal time. No ray is traced.
+/// The BSDF's directional albedo at `wo` ([`crate::bsdf::Bsdf::directional_albedo`], its
+/// specular lobe by [`ALBEDO_SAMPLES`] stratified samples shifted by `rng`'s stream): what the
+/// pixel multiplies the cached light by. [`crate::bsdf::Bsdf::albedo`], Fresnel at the macro
+/// normal without masking, overestimates rough specular layers at grazing angles (by 12% on
+/// the interior's walls); a Monte Carlo estimate over the whole BSDF's samples is noisy, and
+/// its noise is the cached pixel's.
 fn directional_albedo(bsdf: &crate::bsdf::Bsdf, wo: Vec3, mut rng: Rng) -> Vec3 {
     let shift = glam::Vec2::new(rng.next_f32(), rng.next_f32());
-    let lobe = rng.next_f32();
-    let mut sum = Vec3::ZERO;
-    for k in 0..ALBEDO_SAMPLES {
+    let u: [glam::Vec2; ALBEDO_SAMPLES] = std::array::from_fn(|k| {
         let t = (k as f32 + 0.5) / ALBEDO_SAMPLES as f32;
-        // A rank-1 lattice over the samples (Fibonacci-like), shifted.
-        let u = (glam::Vec2::new(t, (k as f32 * 0.618_034) % 1.0) + shift).fract();
-        let ul = (lobe + t) % 1.0;
-        if let Some(b) = bsdf.sample(wo, ul, u) {
-            if !b.transmitted && b.pdf > 0.0 {
-                sum += b.f * (b.wi.z.abs() / b.pdf);
-            }
-        }
-    }
-    let a = sum / ALBEDO_SAMPLES as f32;
-    if a.is_finite() {
-        a
-    } else {
-        Vec3::ZERO
-    }
+        (glam::Vec2::new(t, (k as f32 * 0.618_034).fract()) + shift).fract()
+    });
+    bsdf.directional_albedo(wo, &u)
 }
 
 impl CacheFrame<'_> {
