@@ -407,21 +407,18 @@ fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
 /// Seed 002's texture-space shading cache: its switch and parameters (key `T`).
 fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
     let t = &mut c.frame.texture_cache;
-    ui.checkbox(
-        &mut t.enabled,
-        "texture-space cache (seed 002): light shaded on surface grids, reused across pixels and frames",
-    );
+    ui.checkbox(&mut t.enabled, "texture-space cache (seed 002)");
     ui.add_enabled_ui(t.enabled, |ui| {
         ui.horizontal(|ui| {
             ui.label("cached light");
             ui.radio_value(&mut t.terms, CachedTerms::Indirect, "indirect");
-            ui.radio_value(&mut t.terms, CachedTerms::All, "direct and indirect");
+            ui.radio_value(&mut t.terms, CachedTerms::All, "all");
         });
-        ui.add(egui::Slider::new(&mut t.lod_bias, -2.0..=4.0).text("level bias (coarser texels)"));
+        ui.add(egui::Slider::new(&mut t.lod_bias, -2.0..=4.0).text("level bias"));
         ui.horizontal(|ui| {
             ui.label("level from");
-            ui.radio_value(&mut t.lod, LodMeasure::Area, "footprint area");
-            ui.radio_value(&mut t.lod, LodMeasure::Finer, "finer direction (Eq. 1)");
+            ui.radio_value(&mut t.lod, LodMeasure::Area, "area");
+            ui.radio_value(&mut t.lod, LodMeasure::Finer, "Eq. 1");
         });
         egui::ComboBox::from_label("texture-space filter")
             .selected_text(format!("{:?}", t.filter))
@@ -431,42 +428,29 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 ui.selectable_value(&mut t.filter, CacheFilter::Gaussian, "Gaussian");
             });
         let mut k = t.kernel;
-        ui.add(egui::Slider::new(&mut k, 1..=MAX_KERNEL).text("filter window (squares, odd)"));
+        ui.add(egui::Slider::new(&mut k, 1..=MAX_KERNEL).text("filter window"));
         t.kernel = k | 1;
         egui::ComboBox::from_label("temporal reuse")
             .selected_text(format!("{:?}", t.temporal))
             .show_ui(ui, |ui| {
-                ui.selectable_value(&mut t.temporal, Temporal::Mean, "mean of all samples");
-                ui.selectable_value(
-                    &mut t.temporal,
-                    Temporal::Exponential,
-                    "exponential (Eq. 6)",
-                );
+                ui.selectable_value(&mut t.temporal, Temporal::Mean, "mean");
+                ui.selectable_value(&mut t.temporal, Temporal::Exponential, "Eq. 6");
                 ui.selectable_value(&mut t.temporal, Temporal::None, "none");
             });
-        ui.add(
-            egui::Slider::new(&mut t.shrink, 0.0..=2.0)
-                .text("filter narrows with samples (exponent)"),
-        );
+        ui.add(egui::Slider::new(&mut t.shrink, 0.0..=2.0).text("filter narrowing"));
         ui.add(egui::Slider::new(&mut t.temporal_alpha, 0.0..=0.99).text("Eq. 6 history weight"));
-        ui.add(
-            egui::Slider::new(&mut t.reshade, 0.0..=16.0)
-                .text("reshade rate (a cell of n samples: reshade / n a frame; 0: every frame)"),
-        );
+        ui.add(egui::Slider::new(&mut t.reshade, 0.0..=16.0).text("reshade rate (/ n)"));
         ui.add(
             egui::Slider::new(&mut t.max_count, 1..=4096)
                 .logarithmic(true)
-                .text("samples a cell keeps (mean)"),
+                .text("most samples a cell takes"),
         );
         ui.add(
             egui::Slider::new(&mut t.budget_mb, 0.1..=1024.0)
                 .logarithmic(true)
                 .text("budget (MB)"),
         );
-        ui.add(
-            egui::Slider::new(&mut t.min_roughness, 0.0..=1.0)
-                .text("roughness below which pixels bypass"),
-        );
+        ui.add(egui::Slider::new(&mut t.min_roughness, 0.0..=1.0).text("bypass below roughness"));
     });
 }
 

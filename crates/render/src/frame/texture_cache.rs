@@ -11,34 +11,38 @@
 //! Per pixel sample whose first hit is diffuse enough ([`TextureCacheConfig::min_roughness`]):
 //!
 //! 1. its footprint (ray differentials of its camera sample, [`crate::footprint`]) picks the
-//!    level of its triangle's grid (Eq. 1 with `lod_bias`), its barycentrics the cell (Eq. 2);
+//!    level of its triangle's grid (by default from the footprint's area, or Eq. 1's finer
+//!    direction; plus `lod_bias`), its barycentrics the cell (Eq. 2);
 //! 2. the **texel cache** holds the cell's filtered light for this frame; on a miss, the
 //!    filter's footprint is walked in the **sample cache**, whose cells not yet shaded this
 //!    frame are shaded (one path each from the cell's centroid, white Lambertian there: the
 //!    light is demodulated), the filter is applied and the result stored;
-//! 3. the pixel adds its own terms: its emission and next event estimation (or ReSTIR's
-//!    reservoir) at the first hit, and the texel's light times its BSDF's albedo.
+//! 3. the pixel adds its own terms: its emission, and with `terms = "indirect"` its direct
+//!    light at the first hit (next event estimation and the BSDF's ray, by multiple importance
+//!    sampling, or ReSTIR's reservoir), and the texel's light times its BSDF's directional
+//!    albedo ([`crate::bsdf::Bsdf::directional_albedo`]).
 //!
-//! What is cached (`terms`): `"indirect"`, the light arriving at the cell through at least
-//! one more bounce (what the path tracer's split calls indirect); `"all"`, the direct light
-//! too (next event estimation at the cell), and the pixel then traces no shadow ray. Pixels on
-//! glossy, metallic, transmissive or mirror-like surfaces bypass the cache: their whole path is
-//! traced per pixel, as without it. The cached light is the cosine-weighted mean of the
-//! incoming light (a white Lambertian's reflected light); a pixel multiplies it by its BSDF's
-//! directional albedo, exact for Lambertian surfaces and an approximation for the rough
-//! specular layer of the surfaces that do not bypass.
+//! What is cached (`terms`): `"all"` (the default), the direct light too (next event
+//! estimation at the cell), and the pixel traces no shadow ray; `"indirect"`, the light
+//! arriving at the cell through at least one more bounce (what the path tracer's split calls
+//! indirect). Pixels on glossy (`min_roughness`), metallic, transmissive or mirror-like
+//! surfaces bypass the cache: their whole path is traced per pixel, as without it. The cached
+//! light is the cosine-weighted mean of the incoming light (a white Lambertian's reflected
+//! light); the pixel's BSDF albedo makes it exact for Lambertian surfaces and an approximation
+//! for the rough specular layer of the surfaces that do not bypass (their specular lobe sees
+//! the cosine-weighted mean instead of its own lobe's).
 //!
-//! **Blocks.** A cache slot holds a block of 4 x 4 squares of one triangle's grid at one level
-//! (32 cells: each square's two halves): one key and one state per block, so that a 13 x 13
-//! filter reads a few blocks instead of 338 scattered slots, and the filter runs separably
-//! over the block's squares. A cell's key (Eq. 3) is its block's key and its place in the
-//! block. Blocks are shaded whole: cells next to visible ones are shaded too, which the filter
-//! reads anyway.
+//! **Blocks.** A cache slot holds a block of 2 x 2 squares of one triangle's grid at one level
+//! (8 cells: each square's two halves): one key and one state per block, so that the filter
+//! reads a few blocks instead of scattered cells, and runs separably over the squares. A cell's
+//! key (Eq. 3) is its block's key and its place in the block. Blocks are shaded whole: cells
+//! next to visible ones are shaded too, which the filter mostly reads anyway (blocks of 4 x 4
+//! shaded a third more cells for no gain).
 //!
 //! **Tables.** Each cache is a fixed table of slots (the budget, `budget_mb`, split 70 / 30
-//! between samples and texels) in sets of eight ways (their state words one cache line): a key's set is fixed (direct-mapped by the
-//! key's hash) and its slot keeps the whole key as the tag, so colliding keys never read each
-//! other's light. Eight ways instead of one: with a direct-mapped table two blocks the same frame
+//! between samples and texels) in sets of eight ways (their state words one cache line): a
+//! key's set is fixed (direct-mapped by the key's hash) and its slot keeps the whole key as the
+//! tag, so colliding keys never read each other's light. Eight ways instead of one: with a direct-mapped table two blocks the same frame
 //! needs collide in proportion to the square of the blocks in use (with four ways, a 256 MB
 //! table still overflowed a few sets a frame at 62,000 blocks), and the one that loses is
 //! shaded without a history each frame.
@@ -55,15 +59,21 @@
 //! count, not by the pixel or the thread.
 //!
 //! **Temporal reuse** (`temporal`): the cache persists across frames and camera moves, and is
-//! emptied by any other change. `"mean"`: each cell keeps the mean of all its samples, and a
-//! cell with `max_count` samples is not shaded again (a still scene's view-independent light
-//! converges, whatever the camera does); `"exponential"`: Eq. 6, `c = (1 - alpha) c_new + alpha
-//! c_old` with `alpha = temporal_alpha`, shaded every frame; `"none"`: each frame's sample
-//! alone.
+//! emptied by any other change. `"mean"` (the default): each cell keeps the mean of all its
+//! samples, a cell with `max_count` samples is not shaded again, and with `reshade` a block
+//! of `n` samples is shaded again at a frame with probability `reshade / n` (a still scene's
+//! view-independent light converges whatever the camera does, and cells seen for a while cost
+//! less and less); `"exponential"`: Eq. 6, `c = (1 - alpha) c_new + alpha c_old` with `alpha =
+//! temporal_alpha`; `"none"`: each frame's sample alone. The filter (box or Gaussian over a
+//! `kernel`-wide window of squares) narrows as `n^-shrink` as the cells gather samples (the
+//! paper notes its fixed kernels are not consistent).
 //!
 //! Departures from the paper: per-triangle grids instead of Ptex faces; the filter stays
 //! inside its triangle (its window is clipped and renormalised at the triangle's edges) and so
-//! needs no normal test; both halves of a square share one filtered texel; eight-way sets.
+//! needs no normal test; both halves of a square share one filtered texel; eight-way sets; the
+//! level from the footprint's area by default; direct light cached too by default; the
+//! narrowing filter and the reshading rate. The measurements behind the defaults: BENCHMARKS.md,
+//! "Seed 002".
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::time::Instant;
@@ -204,63 +214,66 @@ impl Default for TextureCacheConfig {
 
 impl TextureCacheConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
-        if !(0.01..=65536.0).contains(&self.budget_mb) {
-            return Err(ConfigError::new(
-                "frame.texture_cache.budget_mb",
-                self.budget_mb,
-                "between 0.01 and 65536",
-            ));
+        /// `Ok` when `ok`, else the error for `field`'s `value`, which must be `requirement`.
+        fn require(
+            ok: bool,
+            field: &'static str,
+            value: impl std::fmt::Display,
+            requirement: &str,
+        ) -> Result<(), ConfigError> {
+            match ok {
+                true => Ok(()),
+                false => Err(ConfigError::new(field, value, requirement)),
+            }
         }
-        if !(self.lod_bias.is_finite() && (-8.0..=16.0).contains(&self.lod_bias)) {
-            return Err(ConfigError::new(
-                "frame.texture_cache.lod_bias",
-                self.lod_bias,
-                "between -8 and 16",
-            ));
-        }
-        if self.kernel.is_multiple_of(2) || self.kernel > MAX_KERNEL {
-            return Err(ConfigError::new(
-                "frame.texture_cache.kernel",
-                self.kernel,
-                format!("odd, at most {MAX_KERNEL}"),
-            ));
-        }
-        if !(0.0..1.0).contains(&self.temporal_alpha) {
-            return Err(ConfigError::new(
-                "frame.texture_cache.temporal_alpha",
-                self.temporal_alpha,
-                "in [0, 1)",
-            ));
-        }
-        if !(0.0..=2.0).contains(&self.shrink) {
-            return Err(ConfigError::new(
-                "frame.texture_cache.shrink",
-                self.shrink,
-                "in [0, 2]",
-            ));
-        }
-        if !(self.reshade.is_finite() && self.reshade >= 0.0) {
-            return Err(ConfigError::new(
-                "frame.texture_cache.reshade",
-                self.reshade,
-                "finite and at least 0",
-            ));
-        }
-        if self.max_count == 0 {
-            return Err(ConfigError::new(
-                "frame.texture_cache.max_count",
-                0,
-                "at least 1",
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.min_roughness) {
-            return Err(ConfigError::new(
-                "frame.texture_cache.min_roughness",
-                self.min_roughness,
-                "in [0, 1]",
-            ));
-        }
-        Ok(())
+        require(
+            (0.01..=65536.0).contains(&self.budget_mb),
+            "frame.texture_cache.budget_mb",
+            self.budget_mb,
+            "between 0.01 and 65536",
+        )?;
+        require(
+            self.lod_bias.is_finite() && (-8.0..=16.0).contains(&self.lod_bias),
+            "frame.texture_cache.lod_bias",
+            self.lod_bias,
+            "between -8 and 16",
+        )?;
+        require(
+            !self.kernel.is_multiple_of(2) && self.kernel <= MAX_KERNEL,
+            "frame.texture_cache.kernel",
+            self.kernel,
+            &format!("odd, at most {MAX_KERNEL}"),
+        )?;
+        require(
+            (0.0..1.0).contains(&self.temporal_alpha),
+            "frame.texture_cache.temporal_alpha",
+            self.temporal_alpha,
+            "in [0, 1)",
+        )?;
+        require(
+            (0.0..=2.0).contains(&self.shrink),
+            "frame.texture_cache.shrink",
+            self.shrink,
+            "in [0, 2]",
+        )?;
+        require(
+            self.reshade.is_finite() && self.reshade >= 0.0,
+            "frame.texture_cache.reshade",
+            self.reshade,
+            "finite and at least 0",
+        )?;
+        require(
+            self.max_count > 0,
+            "frame.texture_cache.max_count",
+            self.max_count,
+            "at least 1",
+        )?;
+        require(
+            (0.0..=1.0).contains(&self.min_roughness),
+            "frame.texture_cache.min_roughness",
+            self.min_roughness,
+            "in [0, 1]",
+        )
     }
 
     /// Light channels per cell: indirect, or direct and indirect.
