@@ -279,6 +279,7 @@ fn import_references(args: &EvalArgs, entries: &[(Option<String>, Spec)]) -> Res
             &m.reference.config,
             &film,
             args.render_seconds,
+            spec.layer,
         )?;
         eprintln!(
             "{}: reference {} (view {}, {} spp) from {} parts",

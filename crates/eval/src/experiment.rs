@@ -24,6 +24,7 @@ use crate::image::Image;
 use crate::metrics;
 use crate::reference::{ReferenceCache, SceneIdentity, RENDERER_VERSION};
 use crate::results::{slopes, BudgetPoint, Measurement, Results, ViewReference};
+use crate::spec::Layer;
 use crate::spec::Spec;
 use crate::EvalError;
 
@@ -135,7 +136,10 @@ impl Runner<'_> {
             .map(|&view| {
                 let config = self.spec.reference_config(&setup.views[view]);
                 let key = ReferenceCache::key(&setup.identity, &config);
-                let cached = self.cache.get(&key, config.width, config.height).is_some();
+                let cached = self
+                    .cache
+                    .get(&key, config.width, config.height, self.spec.layer)
+                    .is_some();
                 NeededReference {
                     view,
                     key,
@@ -177,6 +181,7 @@ impl Runner<'_> {
                 &identity,
                 world,
                 &config,
+                spec.layer,
                 self.cancel,
                 &|done, total| {
                     (self.progress)(&Progress {
@@ -383,7 +388,14 @@ impl ViewRun<'_> {
             if points.is_empty() {
                 continue;
             }
-            let image = Image::new(w, h, pipeline.image());
+            let image = Image::new(
+                w,
+                h,
+                match self.runner.spec.layer {
+                    Layer::Final => pipeline.image(),
+                    Layer::Indirect => pipeline.linear(&DisplayMode::named("indirect")),
+                },
+            );
             let mean_spp = pipeline
                 .frame
                 .history

@@ -7,13 +7,14 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use pathlight_render::checkpoint::{self, Header};
-use pathlight_render::output::{read_exr_rgb, write_atomic, write_film};
+use pathlight_render::output::{read_exr_layer, write_atomic, write_film};
 use pathlight_render::renderer::{pass_targets, render_pass};
 use pathlight_render::{Config, Film, World};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::image::Image;
+use crate::spec::Layer;
 use crate::EvalError;
 
 /// Changes whenever the reference path tracer's output changes (bump it with the renderer),
@@ -128,11 +129,18 @@ impl ReferenceCache {
         )
     }
 
-    /// The cached reference for `key`, when there is a readable one of the right size.
-    pub fn get(&self, key: &str, width: u32, height: u32) -> Option<(Image, ReferenceInfo)> {
+    /// The cached reference for `key` (its `layer`), when there is a readable one of the right
+    /// size (references cached before their layers were stored have no indirect layer).
+    pub fn get(
+        &self,
+        key: &str,
+        width: u32,
+        height: u32,
+        layer: Layer,
+    ) -> Option<(Image, ReferenceInfo)> {
         let (exr, json, _) = self.paths(key);
         let info: ReferenceInfo = serde_json::from_slice(&std::fs::read(&json).ok()?).ok()?;
-        let (w, h, pixels) = read_exr_rgb(&exr).ok()?;
+        let (w, h, pixels) = read_exr_layer(&exr, layer.exr_prefix()).ok()?;
         if (w, h) != (width, height) || pixels.iter().any(|p| !p.is_finite()) {
             log::warn!(
                 "{}: unusable cached reference, rendering it again",
@@ -157,11 +165,12 @@ impl ReferenceCache {
         scene: &SceneIdentity,
         world: &World,
         config: &Config,
+        layer: Layer,
         cancel: &AtomicBool,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<Option<(Image, ReferenceInfo)>, EvalError> {
         let key = Self::key(scene, config);
-        if let Some(found) = self.get(&key, config.width, config.height) {
+        if let Some(found) = self.get(&key, config.width, config.height, layer) {
             return Ok(Some(found));
         }
         let (exr, _, ckpt) = self.paths(&key);
@@ -201,15 +210,21 @@ impl ReferenceCache {
                 last_checkpoint = Instant::now();
             }
         }
-        let (image, info) =
-            self.store(&key, scene, config, &film, start.elapsed().as_secs_f64())?;
+        let (image, info) = self.store(
+            &key,
+            scene,
+            config,
+            &film,
+            start.elapsed().as_secs_f64(),
+            layer,
+        )?;
         let _ = std::fs::remove_file(&ckpt);
         Ok(Some((image, info)))
     }
 
     /// Stores `film`, the finished reference `key` of `scene` rendered with `config` in
-    /// `render_seconds` (here, or on a cluster and merged), as the cache's image and
-    /// description.
+    /// `render_seconds` (here, or on a cluster and merged), as the cache's image (with its
+    /// layers: direct and indirect light, features) and description; returns its `layer`.
     pub fn store(
         &self,
         key: &str,
@@ -217,11 +232,12 @@ impl ReferenceCache {
         config: &Config,
         film: &Film,
         render_seconds: f64,
+        layer: Layer,
     ) -> Result<(Image, ReferenceInfo), EvalError> {
         let (exr, json, _) = self.paths(key);
         let dir = exr.parent().expect("a file in a folder");
         std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir.to_owned(), e))?;
-        write_film(&exr, film, false, &Default::default())?;
+        write_film(&exr, film, true, &Default::default())?;
         let info = ReferenceInfo {
             key: key.to_owned(),
             path: exr.clone(),
@@ -234,13 +250,20 @@ impl ReferenceCache {
         };
         let text = serde_json::to_vec_pretty(&info).expect("serialisable");
         write_atomic(&json, &text)?;
-        Ok((film_image(film), info))
+        Ok((film_image(film, layer), info))
     }
 }
 
-/// The film's mean radiance as an image.
-pub fn film_image(film: &Film) -> Image {
-    Image::new(film.width, film.height, film.layer(|p| p.mean))
+/// The film's mean radiance (or its `layer`) as an image.
+pub fn film_image(film: &Film, layer: Layer) -> Image {
+    Image::new(
+        film.width,
+        film.height,
+        match layer {
+            Layer::Final => film.layer(|p| p.mean),
+            Layer::Indirect => film.layer(|p| p.indirect),
+        },
+    )
 }
 
 /// Mean over pixels and channels of each pixel's variance of the mean.

@@ -63,6 +63,11 @@ pub struct Spec {
     pub budget: Budget,
     #[serde(default)]
     pub reference: ReferenceSpec,
+    /// What is compared against the reference: the image (`final`, the default) or the
+    /// indirect light alone (`indirect`: the history's indirect light against the reference
+    /// path tracer's, paths through at least two surfaces).
+    #[serde(default, skip_serializing_if = "Layer::is_final")]
+    pub layer: Layer,
     /// Display modes of the frame pipeline written beside each configuration's image (first
     /// repetition, last budget point of the last measured view), e.g. `probability`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -106,6 +111,31 @@ fn default_metrics() -> Vec<Metric> {
 
 fn final_view() -> Measure {
     Measure::Final
+}
+
+/// The light an experiment compares.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Layer {
+    /// The image.
+    #[default]
+    Final,
+    /// The indirect light alone.
+    Indirect,
+}
+
+impl Layer {
+    pub fn is_final(&self) -> bool {
+        *self == Layer::Final
+    }
+
+    /// The reference EXR's layer of it (its channels' prefix).
+    pub fn exr_prefix(&self) -> &'static str {
+        match self {
+            Layer::Final => "",
+            Layer::Indirect => "indirect",
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -290,6 +320,14 @@ impl Spec {
             if !names.insert(c.name.as_str()) {
                 return Err(format!(
                     "configuration {:?}: the name is used twice",
+                    c.name
+                ));
+            }
+            if self.layer == Layer::Indirect
+                && c.config.frame.filter.method == pathlight_render::denoise::Method::Rpf
+            {
+                return Err(format!(
+                    "configuration {:?}: layer = \"indirect\" compares the frame pipeline's indirect light; RPF filters the whole image",
                     c.name
                 ));
             }

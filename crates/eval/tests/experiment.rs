@@ -330,3 +330,32 @@ fn an_rpf_configuration_filters_the_reference_tracers_samples_at_each_sample_bud
         assert!(a < b, "{:?}: relMSE {a} with RPF, {b} without", m.budget);
     }
 }
+
+/// `layer = "indirect"` compares the pipeline's indirect light with the reference's: the
+/// cached reference holds the layer (read back equal to what was rendered), its image is the
+/// indirect light alone (darker than the whole image), and the error of the pipeline's
+/// indirect light falls with samples; with the whole image, the same reference entry serves.
+#[test]
+fn the_indirect_layer_is_measured_against_the_references() {
+    let text = SPEC.replace("name = \"small\"", "name = \"small\"\nlayer = \"indirect\"");
+    let spec = Spec::parse(&text).unwrap();
+    let cache = temp_dir("layer");
+    let first = run(&spec, &cache, None);
+    let second = run(&spec, &cache, None);
+    assert!(second.results.references[0].info.cached);
+    let indirect = &first.snapshots.as_ref().unwrap().reference;
+    assert_eq!(indirect, &second.snapshots.as_ref().unwrap().reference);
+    let whole = run(&Spec::parse(SPEC).unwrap(), &cache, None);
+    assert!(
+        whole.results.references[0].info.cached,
+        "one reference entry"
+    );
+    let sum =
+        |i: &pathlight_eval::image::Image| i.pixels.iter().map(|p| p.element_sum()).sum::<f32>();
+    let whole_ref = &whole.snapshots.as_ref().unwrap().reference;
+    assert!(sum(indirect) > 0.0 && sum(indirect) < 0.8 * sum(whole_ref));
+    let m = &first.results.measurements;
+    assert!(m[2].metrics[&Metric::Mse] < m[0].metrics[&Metric::Mse]);
+    // The same configuration measured on the whole image has another error.
+    assert_ne!(m[0].metrics, whole.results.measurements[0].metrics);
+}
