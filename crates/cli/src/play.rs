@@ -52,6 +52,14 @@ pub struct PlayArgs {
     #[command(flatten)]
     pub settings: ConfigArgs,
 
+    /// A stereo pair: each frame is rendered for a left and a right eye this far apart (scene
+    /// units, along the camera's right; parallel eyes), one after the other through one
+    /// pipeline, the right eye at the same instant as the left (the texture cache's texels
+    /// shaded for the left eye serve the right). Frames are written as `frame-NNNNN-left` and
+    /// `-right`; the summary gives the cells the right eye shaded as a share of the left's.
+    #[arg(long, value_name = "D", default_value_t = 0.0)]
+    pub eye_separation: f32,
+
     /// Worker threads [default: all cores]; the frames do not depend on it.
     #[arg(long, value_name = "T")]
     pub threads: Option<usize>,
@@ -78,6 +86,9 @@ struct FrameRecord<'a> {
     index: u64,
     /// Index of the path's view.
     view: usize,
+    /// With `--eye-separation`: `left` or `right`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eye: Option<&'static str>,
     file: Option<String>,
     #[serde(flatten)]
     report: &'a FrameReport,
@@ -205,6 +216,19 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     if frames == 0 || frames > MAX_FRAMES {
         bail!("--frames {frames}: must be between 1 and {MAX_FRAMES}");
     }
+    if !(args.eye_separation.is_finite() && args.eye_separation >= 0.0) {
+        bail!(
+            "--eye-separation {}: must be finite and at least 0",
+            args.eye_separation
+        );
+    }
+    let stereo = args.eye_separation > 0.0;
+    // The eyes: none (one camera), or left and right of each view.
+    let eyes: &[Option<(&'static str, f32)>] = if stereo {
+        &[Some(("left", -0.5)), Some(("right", 0.5))]
+    } else {
+        &[None]
+    };
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     }
@@ -223,6 +247,20 @@ pub fn run(args: &PlayArgs) -> Result<()> {
         },
         ..config.clone()
     };
+    // A view moved by `side` eye separations along its camera's right.
+    let eye_view = |view: &CameraConfig, side: f32| {
+        let c = view.apply(&world.scene_camera());
+        let right = c.transform.x_axis.truncate().normalize_or_zero();
+        let shift = right * (side * args.eye_separation);
+        let from = c.position() + shift;
+        CameraConfig {
+            look_from: Some(from.to_array()),
+            look_at: Some((from + c.forward()).to_array()),
+            up: Some(c.transform.y_axis.truncate().to_array()),
+            ..view.clone()
+        }
+    };
+    let (mut shaded, mut texels) = ([0u64; 2], [0u64; 2]);
     let mut pipeline = Pipeline::new(with_view(&views[0]));
     let mut reports = Vec::new();
     let mut records = Vec::new();
@@ -230,15 +268,25 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     // Flicker: mean absolute difference of consecutive shown frames at the same view.
     let mut previous: Option<(usize, Vec<u8>)> = None;
     let mut flicker = Vec::new();
-    for index in 0..frames {
+    for (index, eye) in (0..frames).flat_map(|i| eyes.iter().map(move |e| (i, *e))) {
         if cancel.load(Ordering::Relaxed) {
             break;
         }
         let view = ((index / per_view) as usize).min(views.len() - 1);
-        pipeline.set_config(&with_view(&views[view]));
+        let camera = match eye {
+            Some((_, side)) => eye_view(&views[view], side),
+            None => views[view].clone(),
+        };
+        pipeline.set_config(&with_view(&camera));
+        // The right eye: the same instant as the left.
+        pipeline.texture_cache.same_instant = matches!(eye, Some(("right", _)));
         let mut report = pool.install(|| pipeline.render_frame(&world));
         pool.install(|| pipeline.display(&mut report));
-        if let Some((v, before)) = &previous {
+        if let (Some(t), Some((name, _))) = (&report.texture_cache, eye) {
+            shaded[usize::from(name == "right")] += t.cells_shaded;
+            texels[usize::from(name == "right")] += t.texel_blocks;
+        }
+        if let (Some((v, before)), None) = (&previous, eye) {
             if *v == view {
                 flicker.push(mean_abs_difference(before, &pipeline.rgba));
             }
@@ -247,7 +295,8 @@ pub fn run(args: &PlayArgs) -> Result<()> {
         let file = match &args.out {
             Some(dir) => {
                 let name = format!(
-                    "frame-{index:05}.{}",
+                    "frame-{index:05}{}.{}",
+                    eye.map_or(String::new(), |(e, _)| format!("-{e}")),
                     match args.format {
                         FrameFormat::Png => "png",
                         FrameFormat::Exr => "exr",
@@ -277,19 +326,22 @@ pub fn run(args: &PlayArgs) -> Result<()> {
             None => None,
         };
         bar.set_message(format!("{:.1} ms", report.ms));
-        bar.inc(1);
-        records.push((index, view, file));
+        if eye.is_none_or(|(e, _)| e == "right") {
+            bar.inc(1);
+        }
+        records.push((index, view, eye.map(|(e, _)| e), file));
         reports.push(report);
     }
     bar.finish_and_clear();
-    let done = reports.len() as u64;
+    let done = (reports.len() / eyes.len()) as u64;
     if let Some(dir) = &args.out {
         let list: Vec<FrameRecord> = records
             .iter()
             .zip(&reports)
-            .map(|((index, view, file), report)| FrameRecord {
+            .map(|((index, view, eye, file), report)| FrameRecord {
                 index: *index,
                 view: *view,
+                eye: *eye,
                 file: file.clone(),
                 report,
             })
@@ -309,6 +361,17 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     let flicker = (!flicker.is_empty()).then(|| flicker.iter().sum::<f64>() / flicker.len() as f64);
     if let Some(f) = flicker {
         eprintln!("flicker (mean |difference| of consecutive frames at one view, 0-1): {f:.5}");
+    }
+    let second_eye = (stereo && shaded[0] > 0).then(|| shaded[1] as f64 / shaded[0] as f64);
+    if let Some(share) = second_eye {
+        eprintln!(
+            "stereo: the right eye shaded {} cells, {:.1}% of the left eye's {}, and filtered \
+             {:.1}% of its texel blocks",
+            shaded[1],
+            100.0 * share,
+            shaded[0],
+            100.0 * texels[1] as f64 / texels[0].max(1) as f64
+        );
     }
     eprintln!(
         "{} frames of {}x{} ({} views), median {:.2} ms per frame ({:.1} fps): {}",
@@ -338,6 +401,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
                 "mrays_per_s": summary.mrays_per_s,
                 "passes": summary.passes_json(),
                 "flicker": flicker,
+                "second_eye_shading": second_eye,
                 "out": args.out,
             })
         );

@@ -249,3 +249,45 @@ fn play_measures_flicker_at_a_still_view() {
     let v: serde_json::Value = serde_json::from_str(&last).unwrap();
     assert!(v["flicker"].is_null(), "{v}");
 }
+
+/// `--eye-separation`: each frame for a left and a right eye, written apart; with the texture
+/// cache the right eye finds most of what the left one shaded at the same instant.
+#[test]
+fn a_stereo_pair_shares_the_texture_cache() {
+    let dir = temp_dir("play-stereo");
+    let o = pathlight(&[
+        "play",
+        "--path",
+        "still",
+        "--frames",
+        "2",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--quiet",
+        "--json",
+        "--texture-cache",
+        "--eye-separation",
+        "0.05",
+        "--out",
+        s(&dir),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in [
+        "frame-00000-left.png",
+        "frame-00000-right.png",
+        "frame-00001-right.png",
+    ] {
+        assert!(dir.join(name).exists(), "{name}");
+    }
+    let last = stdout(&o).lines().last().unwrap().to_owned();
+    let v: serde_json::Value = serde_json::from_str(&last).unwrap();
+    let share = v["second_eye_shading"].as_f64().unwrap();
+    assert!(share > 0.0 && share < 0.5, "{share}");
+    let left = std::fs::read(dir.join("frame-00000-left.png")).unwrap();
+    let right = std::fs::read(dir.join("frame-00000-right.png")).unwrap();
+    assert_ne!(left, right, "the eyes see different views");
+    let o = pathlight(&["play", "--path", "still", "--eye-separation", "-1"]);
+    assert!(!o.status.success());
+}

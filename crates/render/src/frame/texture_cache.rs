@@ -615,6 +615,10 @@ pub struct TextureCache {
     counters: Counters,
     /// Per pixel: what its first sample met.
     pub pixels: Vec<CachePixel>,
+    /// The next frame belongs to the same instant as the last (a stereo pair's second eye):
+    /// it finds the cells and texels the last one shaded this frame instead of shading them
+    /// again.
+    pub same_instant: bool,
 }
 
 /// The cache as one frame's lighting pass reads it.
@@ -691,7 +695,9 @@ impl TextureCache {
             self.samples.clear();
             self.texels.clear();
         }
-        self.frame = self.frame.wrapping_add(1).max(1);
+        if !std::mem::take(&mut self.same_instant) || self.frame == 0 {
+            self.frame = self.frame.wrapping_add(1).max(1);
+        }
         self.counters = Counters::default();
         self.pixels.clear();
         self.pixels.resize(pixels, CachePixel::default());
