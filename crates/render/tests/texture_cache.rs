@@ -219,10 +219,9 @@ fn a_small_cache_evicts_but_never_mixes_cells() {
     large.frame.texture_cache.budget_mb = 256.0;
     let (a, ra, _) = run(&world, &small, 6, false);
     let (b, rb, _) = run(&world, &large, 6, false);
-    assert!(
-        ra.iter().any(|r| r.uncached > 0),
-        "the small cache never overflowed: {ra:?}"
-    );
+    // The small cache evicts (its blocks are shaded again), the large one does not.
+    let cells = |r: &[CacheReport]| r.iter().map(|r| r.cells_shaded).sum::<u64>();
+    assert!(cells(&ra) > cells(&rb), "{ra:?} against {rb:?}");
     assert!(rb.iter().all(|r| r.uncached == 0), "{rb:?}");
     let mean = |v: &[Vec3]| v.iter().map(|p| p.element_sum()).sum::<f32>() / v.len() as f32;
     let (ma, mb) = (mean(a.last().unwrap()), mean(b.last().unwrap()));

@@ -52,10 +52,11 @@
 //! being shaded (defers it and comes back after the rest of the filter's footprint), or claims
 //! it by compare-and-swap and shades it. Taking an empty or stale way for a new key happens
 //! under the set's insertion flag (a miss path, once per block and frame); reads and re-shading
-//! take no lock. A slot shaded this frame is never evicted this frame: a block that finds its
-//! set full of this frame's blocks is shaded without the cache (counted as `uncached`). So with
-//! a table large enough, every block needed is shaded exactly once per frame, and the image does
-//! not depend on the thread count: a cell's random stream is keyed by the cell and its sample
+//! take no lock. A slot shaded this frame is evicted this frame only when its set holds
+//! nothing older (a table too small for the frame: its readers check after reading, as a
+//! seqlock's, and look again); a block whose set is all being shaded is shaded without the
+//! cache (counted as `uncached`). So with a table large enough, every block needed is shaded
+//! exactly once per frame, and the image does not depend on the thread count: a cell's random stream is keyed by the cell and its sample
 //! count, not by the pixel or the thread.
 //!
 //! **Temporal reuse** (`temporal`): the cache persists across frames and camera moves, and is
@@ -384,7 +385,9 @@ struct Table {
 /// What a thread found for a key.
 enum Claim {
     /// Shaded this frame, at this slot.
-    Ready(usize),
+    /// (With its state word, to check after reading that the slot still holds it:
+    /// [`Table::still`].)
+    Ready(usize, u64),
     /// Claimed by this thread, to be shaded (`fresh`: a new key, its data to be cleared).
     Mine(usize, bool),
     /// Being shaded by another thread.
@@ -449,15 +452,21 @@ impl Table {
                         if self.frames[i].load(Ordering::Acquire) == frame
                             && self.states[i].load(Ordering::Acquire) == s =>
                     {
-                        return Claim::Ready(i)
+                        return Claim::Ready(i, s)
                     }
-                    // Shaded at an earlier frame: re-shade it on its history.
+                    // Shaded at an earlier frame: re-shade it on its history. (The state word
+                    // is the same before and after another thread re-shades it: having taken
+                    // it, check that this frame did not.)
                     _ => match self.states[i].compare_exchange(
                         s,
                         key | BUSY,
                         Ordering::AcqRel,
                         Ordering::Acquire,
                     ) {
+                        Ok(_) if self.frames[i].load(Ordering::Acquire) == frame => {
+                            self.states[i].store(s, Ordering::Release);
+                            continue;
+                        }
                         Ok(_) => return Claim::Mine(i, false),
                         Err(_) => continue,
                     },
@@ -477,15 +486,20 @@ impl Table {
                 flag.store(false, Ordering::Release);
                 continue;
             }
-            // An empty way, else the way shaded longest ago (not this frame).
+            // An empty way, else the way shaded longest ago, else (the set full of this
+            // frame's blocks: a table too small for the frame) one shaded this frame, whose
+            // readers see it go (`still`) and look again: a block shaded once is then reused
+            // by the lookups that follow it instead of every lookup shading it again.
             let victim = (base..base + WAYS)
                 .filter_map(|i| {
                     let s = self.states[i].load(Ordering::Acquire);
                     match s & STATE {
-                        EMPTY => Some((i, s, 0)),
+                        EMPTY => Some((i, s, (false, 0))),
                         READY => {
+                            // (This frame's last; then the smaller `f - frame`, wrapping: the
+                            // older.)
                             let f = self.frames[i].load(Ordering::Acquire);
-                            (f != frame).then_some((i, s, f.wrapping_sub(frame)))
+                            Some((i, s, (f == frame, f.wrapping_sub(frame))))
                         }
                         _ => None,
                     }
@@ -493,13 +507,19 @@ impl Table {
                 .min_by_key(|&(_, _, age)| age);
             let claim = match victim {
                 None => Claim::Full,
-                Some((i, s, _)) => {
+                Some((i, s, (current, _))) => {
                     match self.states[i].compare_exchange(
                         s,
                         key | BUSY,
                         Ordering::AcqRel,
                         Ordering::Acquire,
                     ) {
+                        // A stale way that its key re-shaded this frame meanwhile: keep it.
+                        Ok(_) if !current && self.frames[i].load(Ordering::Acquire) == frame => {
+                            self.states[i].store(s, Ordering::Release);
+                            flag.store(false, Ordering::Release);
+                            continue;
+                        }
                         Ok(_) => Claim::Mine(i, true),
                         // Re-shaded meanwhile by its own key's thread: look again.
                         Err(_) => {
@@ -512,6 +532,14 @@ impl Table {
             flag.store(false, Ordering::Release);
             return claim;
         }
+    }
+
+    /// After reading slot `i`, found shaded at `frame` with state word `s`: it still is (no
+    /// other key took it while it was read; a seqlock's second check).
+    fn still(&self, i: usize, s: u64, frame: u32) -> bool {
+        std::sync::atomic::fence(Ordering::Acquire);
+        self.states[i].load(Ordering::Relaxed) == s
+            && self.frames[i].load(Ordering::Relaxed) == frame
     }
 
     /// Publishes slot `i`, claimed for `key`, as shaded at `frame`.
@@ -948,11 +976,13 @@ impl CacheFrame<'_> {
         let bkey = block.key();
         loop {
             match table.claim(bkey, frame) {
-                Claim::Ready(i) => {
+                Claim::Ready(i, s) => {
                     for (c, o) in out[..ch].iter_mut().enumerate() {
                         *o = table.word(i, square * ch + c);
                     }
-                    return (Status::Hit, key);
+                    if table.still(i, s, frame) {
+                        return (Status::Hit, key);
+                    }
                 }
                 Claim::Busy => std::thread::yield_now(),
                 Claim::Mine(i, _) => {
@@ -992,9 +1022,11 @@ impl CacheFrame<'_> {
         let n = table.stride;
         loop {
             match table.claim(key, frame) {
-                Claim::Ready(i) => {
+                Claim::Ready(i, s) => {
                     table.read(i, &mut out[..n]);
-                    return Status::Hit;
+                    if table.still(i, s, frame) {
+                        return Status::Hit;
+                    }
                 }
                 Claim::Busy => std::thread::yield_now(),
                 Claim::Mine(i, fresh) => {
@@ -1163,9 +1195,12 @@ impl CacheFrame<'_> {
                 };
                 let table = &self.cache.samples;
                 match table.claim(b.key(), self.cache.frame) {
-                    Claim::Ready(i) => {
+                    Claim::Ready(i, s) => {
                         table.read(i, &mut cells[..stride * CELLS]);
-                        gather(&b, &cells, &mut grid);
+                        match table.still(i, s, self.cache.frame) {
+                            true => gather(&b, &cells, &mut grid),
+                            false => deferred.push(b),
+                        }
                     }
                     Claim::Busy => deferred.push(b),
                     Claim::Mine(i, fresh) => {
@@ -1347,48 +1382,82 @@ mod tests {
             .collect()
     }
 
-    /// Colliding keys are told apart by their tags: each reads its own data, a key never
-    /// shaded is not found, and a set full of this frame's keys turns a new one away.
+    /// Colliding keys are told apart by their tags: each reads its own data; at the next
+    /// frame a new key takes the way shaded longest ago while the others keep their data; a
+    /// set full of this frame's keys gives one of their ways to a new key (a table too small
+    /// for its frame), and its readers see it go; a set whose ways are all being shaded turns
+    /// a new key away.
     #[test]
     fn tags_catch_colliding_keys() {
         let t = Table::new(1, 1);
         assert_eq!(t.slots(), WAYS);
-        let k = keys(WAYS as u64 + 1);
+        let k = keys(WAYS as u64 + 2);
         let slots = publish_all(&t, &k[..WAYS], 1);
         for (&key, &i) in k.iter().zip(&slots) {
             match t.claim(key, 1) {
-                Claim::Ready(j) => {
+                Claim::Ready(j, s) => {
                     assert_eq!(j, i);
                     assert_eq!(t.word(j, 0), key as f32);
+                    assert!(t.still(j, s, 1));
                 }
                 _ => panic!("{key:x} not ready"),
             }
         }
-        assert!(matches!(t.claim(k[WAYS], 1), Claim::Full));
-        // At the next frame, the new key takes the way shaded longest ago, and the others keep
-        // their data to be shaded again on it.
+        // Frame 2: k[0] shaded again on its history; the new key takes the oldest way.
         match t.claim(k[0], 2) {
             Claim::Mine(i, fresh) => {
                 assert!(!fresh);
+                assert_eq!(t.word(i, 0), k[0] as f32, "its history kept");
                 t.publish(i, k[0], 2)
             }
             _ => panic!("not claimed again"),
         }
-        match t.claim(k[WAYS], 2) {
+        let taken = match t.claim(k[WAYS], 2) {
             Claim::Mine(i, fresh) => {
                 assert!(fresh);
-                assert_eq!(i, slots[1], "the oldest way is taken");
+                assert_ne!(i, slots[0], "not the way shaded this frame");
+                t.publish(i, k[WAYS], 2);
+                i
             }
             _ => panic!("not claimed"),
+        };
+        assert!(matches!(t.claim(k[2], 2), Claim::Mine(_, false)) || slots[2] == taken);
+        // Frame 3: every way shaded this frame, then one more key.
+        let t = Table::new(1, 1);
+        let slots = publish_all(&t, &k[..WAYS], 3);
+        let (i0, s0) = match t.claim(k[0], 3) {
+            Claim::Ready(i, s) => (i, s),
+            _ => panic!("not ready"),
+        };
+        match t.claim(k[WAYS], 3) {
+            Claim::Mine(i, true) => {
+                t.write(i, &[1.5]);
+                t.publish(i, k[WAYS], 3);
+                let gone = slots.iter().position(|&j| j == i).unwrap();
+                if i == i0 {
+                    assert!(
+                        !t.still(i0, s0, 3),
+                        "the reader of the replaced key sees it go"
+                    );
+                }
+                assert!(matches!(t.claim(k[gone], 3), Claim::Mine(_, true)));
+            }
+            _ => panic!("the new key found no way"),
         }
-        assert!(matches!(t.claim(k[2], 2), Claim::Mine(_, false)));
+        // Every way being shaded: a new key is turned away.
+        let busy = Table::new(1, 1);
+        for &key in &k[..WAYS] {
+            assert!(matches!(busy.claim(key, 1), Claim::Mine(..)));
+        }
+        assert!(matches!(busy.claim(k[WAYS + 1], 1), Claim::Full));
     }
 
     /// Two threads claiming the same keys of one frame: each key is claimed once, and ends in
     /// exactly one way.
     #[test]
     fn each_key_is_claimed_once_per_frame_by_two_threads() {
-        let t = Table::new(1 << 16, 1);
+        // A table large enough for the frame (no set overflows).
+        let t = Table::new(1 << 20, 1);
         let k = keys(2000);
         for frame in 1..4 {
             let claimed: Vec<AtomicU32> = k.iter().map(|_| AtomicU32::new(0)).collect();
@@ -1403,7 +1472,7 @@ mod tests {
                                         t.publish(i, key, frame);
                                         break;
                                     }
-                                    Claim::Ready(_) | Claim::Full => break,
+                                    Claim::Ready(..) | Claim::Full => break,
                                     Claim::Busy => std::hint::spin_loop(),
                                 }
                             }
