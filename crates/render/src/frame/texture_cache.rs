@@ -1030,15 +1030,7 @@ impl CacheFrame<'_> {
                 }
                 Claim::Busy => std::thread::yield_now(),
                 Claim::Mine(i, fresh) => {
-                    if fresh {
-                        out[..n].fill(0.0);
-                    } else {
-                        table.read(i, &mut out[..n]);
-                    }
-                    self.shade(tracer, block, &mut out[..n], rays, shaded);
-                    table.write(i, &out[..n]);
-                    table.publish(i, key, frame);
-                    self.cache.counters.blocks.fetch_add(1, Ordering::Relaxed);
+                    self.shade_slot(tracer, block, i, fresh, &mut out[..n], rays, shaded);
                     return Status::Miss;
                 }
                 Claim::Full => {
@@ -1049,6 +1041,32 @@ impl CacheFrame<'_> {
                 }
             }
         }
+    }
+
+    /// Shades sample block `block` into slot `i` of the sample cache, claimed for it (`fresh`:
+    /// a new key, no history), its cells' data into `out`, and publishes it as shaded this
+    /// frame.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_slot(
+        &self,
+        tracer: &PathTracer,
+        block: &Block,
+        i: usize,
+        fresh: bool,
+        out: &mut [f32],
+        rays: &mut u64,
+        shaded: &mut u32,
+    ) {
+        let table = &self.cache.samples;
+        if fresh {
+            out.fill(0.0);
+        } else {
+            table.read(i, out);
+        }
+        self.shade(tracer, block, out, rays, shaded);
+        table.write(i, out);
+        table.publish(i, block.key(), self.cache.frame);
+        self.cache.counters.blocks.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Shades `block`'s cells into their data `data` (count, channels per cell) by the
@@ -1205,15 +1223,7 @@ impl CacheFrame<'_> {
                     Claim::Busy => deferred.push(b),
                     Claim::Mine(i, fresh) => {
                         let n = stride * CELLS;
-                        if fresh {
-                            cells[..n].fill(0.0);
-                        } else {
-                            table.read(i, &mut cells[..n]);
-                        }
-                        self.shade(tracer, &b, &mut cells[..n], rays, shaded);
-                        table.write(i, &cells[..n]);
-                        table.publish(i, b.key(), self.cache.frame);
-                        self.cache.counters.blocks.fetch_add(1, Ordering::Relaxed);
+                        self.shade_slot(tracer, &b, i, fresh, &mut cells[..n], rays, shaded);
                         gather(&b, &cells, &mut grid);
                     }
                     Claim::Full => {
