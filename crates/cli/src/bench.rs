@@ -616,7 +616,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
             summary.mrays_per_s,
             rays as f64 / args.frames as f64 / (config.width as f64 * config.height as f64)
         );
-        println!("memory: {plain_bpp:.0} bytes per pixel, {technique_bpp:.0} more for the techniques that are on (seed 000's, ReSTIR's)");
+        println!("memory: {plain_bpp:.0} bytes per pixel, {technique_bpp:.0} more for the techniques that are on");
     }
     Ok(())
 }
