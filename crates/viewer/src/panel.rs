@@ -438,6 +438,7 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 ui.selectable_value(&mut t.temporal, Temporal::None, "none");
             });
         ui.add(egui::Slider::new(&mut t.shrink, 0.0..=2.0).text("filter narrowing"));
+        ui.checkbox(&mut t.interpolate, "interpolate texels");
         ui.add(egui::Slider::new(&mut t.temporal_alpha, 0.0..=0.99).text("Eq. 6 history weight"));
         ui.add(egui::Slider::new(&mut t.reshade, 0.0..=16.0).text("reshade rate (/ n)"));
         ui.add(

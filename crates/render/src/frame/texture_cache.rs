@@ -188,6 +188,9 @@ pub struct TextureCacheConfig {
     /// How a footprint picks the level: `"area"`, cells about a pixel's area (the default:
     /// fewer cells on long thin triangles), or `"finer"`, Eq. 1's finer direction.
     pub lod: LodMeasure,
+    /// A pixel's light interpolated bilinearly between the four filtered texels around it
+    /// (with a filter; without one, its cell's own light).
+    pub interpolate: bool,
     /// Pixels on surfaces smoother than this (perceptual roughness), metallic above 0.5,
     /// transmissive or with a mirror-like lobe trace their whole path instead.
     pub min_roughness: f32,
@@ -208,6 +211,7 @@ impl Default for TextureCacheConfig {
             reshade: 2.0,
             shrink: 0.5,
             lod: LodMeasure::Area,
+            interpolate: true,
             min_roughness: 0.3,
         }
     }
@@ -927,7 +931,17 @@ impl CacheFrame<'_> {
         );
         let mut rays = s.rays as u64;
         let mut light = [0.0f32; 6];
-        let (status, key) = self.lookup(tracer, &cell, &mut light, &mut rays, &mut record.shaded);
+        let (status, key) = match self.cfg.interpolate && self.cfg.filter != CacheFilter::None {
+            true => self.interpolated(
+                tracer,
+                &cell,
+                v.surface.bary,
+                &mut light,
+                &mut rays,
+                &mut record.shaded,
+            ),
+            false => self.lookup(tracer, &cell, &mut light, &mut rays, &mut record.shaded),
+        };
         let albedo = directional_albedo(&bsdf, v.surface.to_local(-hit.ray.direction), albedo_rng);
         let indirect = albedo * Vec3::from_slice(&light[self.cfg.channels() - 3..]);
         let mut d = s.direct;
@@ -946,6 +960,67 @@ impl CacheFrame<'_> {
             ..s.bounce
         };
         Some((d, indirect, rays, bounce))
+    }
+
+    /// The light at barycentrics `bary` of `cell`'s triangle and level into `out`: the
+    /// filtered texels of the four squares around it, weighted bilinearly (those past the
+    /// triangle's edge left out, the others renormalised), so that texels do not show as
+    /// blocks. Returns the worst of the four lookups' statuses and `cell`'s texel key.
+    fn interpolated(
+        &self,
+        tracer: &PathTracer,
+        cell: &Cell,
+        bary: glam::Vec2,
+        out: &mut [f32; 6],
+        rays: &mut u64,
+        shaded: &mut u32,
+    ) -> (Status, u64) {
+        let ch = self.cfg.channels();
+        let r = self.grids.resolution(cell);
+        let u = bary.clamp(glam::Vec2::ZERO, glam::Vec2::ONE) * r as f32 - 0.5;
+        let base = u.floor();
+        let f = u - base;
+        let (mut sum, mut total) = ([0.0f32; 6], 0.0f32);
+        let (mut status, mut key) = (Status::Hit, 0);
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (i, j) = (base.x as i64 + dx, base.y as i64 + dy);
+            if i < 0 || j < 0 || i + j >= r as i64 {
+                continue;
+            }
+            let w =
+                (if dx == 1 { f.x } else { 1.0 - f.x }) * (if dy == 1 { f.y } else { 1.0 - f.y });
+            if w <= 0.0 {
+                continue;
+            }
+            let corner = Cell {
+                square: UVec2::new(i as u32, j as u32),
+                upper: false,
+                ..*cell
+            };
+            let mut light = [0.0f32; 6];
+            let (st, k) = self.lookup(tracer, &corner, &mut light, rays, shaded);
+            for c in 0..ch {
+                sum[c] += w * light[c];
+            }
+            total += w;
+            if st != Status::Hit {
+                status = st;
+            }
+            if corner.square == cell.square {
+                key = k;
+            }
+        }
+        if total <= 0.0 {
+            return self.lookup(tracer, cell, out, rays, shaded);
+        }
+        for c in 0..ch {
+            out[c] = sum[c] / total;
+        }
+        if key == 0 {
+            let (block, k) = Block::of(cell, r);
+            key = hash(&[block.key(), k as u64]);
+        }
+        (status, key)
     }
 
     /// The light of `cell` into `out` (its channels): its texel, filtered this frame, or with
