@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{config, quad, scene, sphere, world};
+use common::{ball_and_floor, config, scene, sphere, world};
 use glam::Vec3;
 use pathlight_render::renderer::render;
 use pathlight_scene::{Material, Volume};
@@ -62,17 +62,7 @@ fn white_lambertian_sphere_and_open_box_vanish() {
     // A white sphere above a white quad, and a second quad closing a corner: light bounces
     // between them many times (no Russian roulette while the throughput stays 1).
     let white = Material::lambertian("white", Vec3::ONE);
-    let mut floor = quad(0, 2.0, 0.0);
-    for p in &mut floor.positions {
-        *p = Vec3::new(p.x, -1.0, p.y);
-    }
-    floor.normals = Some(vec![Vec3::Y; 4]);
-    // Flat shading: interpolated normals on a faceted sphere are not energy-conserving (paths
-    // whose sampled direction falls below the true surface are dropped), which would bias
-    // this test by ~0.2%.
-    let mut ball = sphere(0, 3);
-    ball.normals = None;
-    let (mean, se, worst) = furnace(vec![white], vec![ball, floor], 256);
+    let (mean, se, worst) = furnace(vec![white], ball_and_floor(), 256);
     assert!(
         (mean - 1.0).abs() < 4.0 * se + 1e-4,
         "mean {mean}, standard error {se}"

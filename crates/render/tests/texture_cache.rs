@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{config, cornell, in_pool, quad, scene, sphere, world};
+use common::{ball_and_floor, config, cornell, in_pool, scene, world};
 use glam::Vec3;
 use pathlight_render::camera_path::{CameraPath, PathKind};
 use pathlight_render::frame::texture_cache::{CacheFilter, CacheReport, CachedTerms};
@@ -101,15 +101,8 @@ fn every_block_is_shaded_once_per_frame_and_frames_do_not_depend_on_the_thread_c
 #[test]
 fn the_white_furnace_converges_through_the_cache() {
     let white = Material::lambertian("white", Vec3::ONE);
-    let mut floor = quad(0, 2.0, 0.0);
-    for p in &mut floor.positions {
-        *p = Vec3::new(p.x, -1.0, p.y);
-    }
-    floor.normals = Some(vec![Vec3::Y; 4]);
-    let mut ball = sphere(0, 3);
-    ball.normals = None;
     let world = world(scene(
-        vec![ball, floor],
+        ball_and_floor(),
         vec![white],
         Some(Vec3::ONE),
         Vec3::new(0.0, 0.5, 4.0),

@@ -46,6 +46,21 @@ pub fn sphere(material: u32, subdivisions: u32) -> Mesh {
     }
 }
 
+/// A faceted unit sphere above a 4x4 floor at y = -1 facing up, both of material 0: the white
+/// furnace's objects. Flat shading: interpolated normals on a faceted sphere are not
+/// energy-conserving (paths whose sampled direction falls below the true surface are dropped),
+/// which would bias a furnace by ~0.2%.
+pub fn ball_and_floor() -> Vec<Mesh> {
+    let mut floor = quad(0, 2.0, 0.0);
+    for p in &mut floor.positions {
+        *p = Vec3::new(p.x, -1.0, p.y);
+    }
+    floor.normals = Some(vec![Vec3::Y; 4]);
+    let mut ball = sphere(0, 3);
+    ball.normals = None;
+    vec![ball, floor]
+}
+
 /// A quad in the plane z = `z`, x and y in [-half, half], facing +Z, with UVs and tangents.
 pub fn quad(material: u32, half: f32, z: f32) -> Mesh {
     Mesh {
