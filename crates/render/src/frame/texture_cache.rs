@@ -112,6 +112,10 @@ const CELLS: usize = 2 * SQUARES;
 const WAYS: usize = 8;
 /// Largest filter window.
 pub const MAX_KERNEL: u32 = 41;
+/// Largest budget, in MB: the tables are allocated whole when the cache is switched on, and a
+/// larger one buys nothing at the resolutions the pipeline runs (256 bytes per pixel already
+/// evict nothing at 320x180; 4 GB is 2,000 bytes per pixel at 1920x1080).
+pub const MAX_BUDGET_MB: f32 = 4096.0;
 
 /// The reconstruction filter over the sample cells, in texture space.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -232,10 +236,10 @@ impl TextureCacheConfig {
             }
         }
         require(
-            (0.01..=65536.0).contains(&self.budget_mb),
+            (0.01..=MAX_BUDGET_MB).contains(&self.budget_mb),
             "frame.texture_cache.budget_mb",
             self.budget_mb,
-            "between 0.01 and 65536",
+            &format!("between 0.01 and {MAX_BUDGET_MB}"),
         )?;
         require(
             self.lod_bias.is_finite() && (-8.0..=16.0).contains(&self.lod_bias),
