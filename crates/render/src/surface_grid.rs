@@ -58,6 +58,10 @@ pub struct SurfaceGrids {
     offsets: Vec<u32>,
     /// Per triangle of every instance, the base resolution's exponent: `R_0 = 2^e`.
     exponents: Vec<u8>,
+    /// Per instance, its transform mirrors (negative determinant): the intersector's geometric
+    /// normal (the object-space normal through the normal matrix) points against the
+    /// world-space corners' winding.
+    mirrored: Vec<bool>,
 }
 
 /// One grid cell of one side of one triangle at one level.
@@ -109,6 +113,9 @@ impl SurfaceGrids {
             base_cell,
             offsets,
             exponents,
+            mirrored: (scene.instances.iter())
+                .map(|inst| inst.transform.determinant() < 0.0)
+                .collect(),
         }
     }
 
@@ -124,7 +131,9 @@ impl SurfaceGrids {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        self.exponents.capacity() + self.offsets.capacity() * std::mem::size_of::<u32>()
+        self.exponents.capacity()
+            + self.offsets.capacity() * std::mem::size_of::<u32>()
+            + self.mirrored.capacity()
     }
 
     /// The cell a hit falls in: the level its footprint asks for (Eq. 1, or with `area` the
@@ -189,10 +198,7 @@ impl SurfaceGrids {
         // The geometric normal as the intersector's surfaces have it: the object-space normal
         // through the instance's normal matrix, which a mirroring transform (negative
         // determinant) turns against the world-space corners' winding.
-        let mirrored = world.scene.instances[cell.instance as usize]
-            .transform
-            .determinant()
-            < 0.0;
+        let mirrored = self.mirrored[cell.instance as usize];
         let n = (p1 - p0).cross(p2 - p0).normalize_or(Vec3::Z) * if mirrored { -1.0 } else { 1.0 };
         // A ray arriving from the cell's side, one unit away.
         let toward = if cell.back { n } else { -n };

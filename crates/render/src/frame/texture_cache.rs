@@ -815,34 +815,18 @@ impl CacheFrame<'_> {
         if spp == 0 {
             return (LightSample::default(), 0);
         }
-        let mut rays = 0u64;
         let first = tracer.camera_sample(x, y, index);
         let albedo_rng = Rng::new(hash(&[self.seed, x as u64, y as u64]), index as u64);
-        let s0 = match self.sample(
-            tracer,
-            (first.film, first.lens),
-            hit,
-            direct,
-            albedo_rng,
-            record,
-        ) {
-            Some(s) => s,
-            None => {
-                // The first sample bypasses: the plain lighting of this pixel (its other
-                // samples through the cache below).
-                let (mut l, r) = lighting::light(tracer, x, y, hit, index, 1, along, direct);
-                rays += r;
-                for k in 1..spp {
-                    let (d, i, r) = self.another(tracer, x, y, index + k);
-                    l.stats.add(d, i);
-                    rays += r;
+        let film_lens = (first.film, first.lens);
+        // The first sample through the cache, or (it bypasses) the plain lighting's.
+        let (mut stats, bounce, mut rays) =
+            match self.sample(tracer, film_lens, hit, direct, albedo_rng, record) {
+                Some((d, i, r, bounce)) => (PixelStats::one(d, i), bounce, r),
+                None => {
+                    let (l, r) = lighting::light(tracer, x, y, hit, index, 1, along, direct);
+                    (l.stats, l.bounce, r)
                 }
-                return (l, rays);
-            }
-        };
-        let (d0, i0, r0, bounce) = s0;
-        rays += r0;
-        let mut stats = PixelStats::one(d0, i0);
+            };
         for k in 1..spp {
             let (d, i, r) = self.another(tracer, x, y, index + k);
             stats.add(d, i);
@@ -1039,7 +1023,8 @@ impl CacheFrame<'_> {
     ) -> (Status, u64) {
         let ch = self.cfg.channels();
         let (block, k) = Block::of(cell, self.grids.resolution(cell));
-        let key = hash(&[block.key(), k as u64]);
+        let bkey = block.key();
+        let key = hash(&[bkey, k as u64]);
         if self.cfg.filter == CacheFilter::None {
             let mut cells = [0.0f32; CELLS * 7];
             let t = Instant::now();
@@ -1052,7 +1037,6 @@ impl CacheFrame<'_> {
         let square = k / 2;
         let table = &self.cache.texels;
         let frame = self.cache.frame;
-        let bkey = block.key();
         loop {
             match table.claim(bkey, frame) {
                 Claim::Ready(i, s) => {
@@ -1257,7 +1241,10 @@ impl CacheFrame<'_> {
         // The squares of the (2 reach + 1)^2 blocks around: per square, channel sums and the
         // weight (halves shaded).
         let w = side * BLOCK as usize;
-        let mut grid = vec![0.0f32; w * w * (ch + 1)];
+        // Per-thread scratch (the filter runs once per texel block and frame).
+        let (mut grid, mut rows) = SCRATCH.with_borrow_mut(std::mem::take);
+        grid.clear();
+        grid.resize(w * w * (ch + 1), 0.0);
         let mut cells = [0.0f32; CELLS * 7];
         let mut deferred = Vec::new();
         // The block's own cells' mean sample count (the filter narrows as it grows).
@@ -1322,7 +1309,8 @@ impl CacheFrame<'_> {
         self.weights(centre.0 / centre.1.max(1) as f32, weights);
         // Separable: along x over the rows the block's squares need, then along y.
         let lo = reach as usize * BLOCK as usize;
-        let mut rows = vec![0.0f32; w * BLOCK as usize * (ch + 1)];
+        rows.clear();
+        rows.resize(w * BLOCK as usize * (ch + 1), 0.0);
         for y in 0..w {
             for x in 0..BLOCK as usize {
                 let o = &mut rows[(y * BLOCK as usize + x) * (ch + 1)..][..ch + 1];
@@ -1358,7 +1346,14 @@ impl CacheFrame<'_> {
                 }
             }
         }
+        SCRATCH.with_borrow_mut(|s| *s = (grid, rows));
     }
+}
+
+thread_local! {
+    /// The filter's scratch, per thread: the window's squares, and its rows filtered along x.
+    static SCRATCH: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Samples of the specular lobe in [`directional_albedo`].
