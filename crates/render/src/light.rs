@@ -47,6 +47,7 @@ use serde::{Deserialize, Serialize};
 use crate::alias::AliasTable;
 use crate::distribution::Distribution2D;
 
+pub mod sun;
 #[cfg(test)]
 pub(crate) mod tests;
 
@@ -412,26 +413,8 @@ impl Lights {
 
         // The environment.
         let environment = scene.environment.as_ref().map(|env| {
-            let (w, h) = (env.width as usize, env.height as usize);
-            // Low maps get several distribution rows per texel row, so the density follows
-            // sin(theta) (a constant map is then sampled nearly uniformly over the sphere);
-            // every distribution cell still lies inside one texel.
-            let split = MIN_ENVIRONMENT_ROWS.div_ceil(h.max(1));
-            let rows = h * split;
-            let mut texel_weights = vec![0.0f32; w * rows];
-            let mut integral = 0.0f64;
-            for y in 0..h {
-                let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
-                let solid_angle = (2.0 * PI / w as f32) * (t0.cos() - t1.cos());
-                for x in 0..w {
-                    let lum = weight(env.texels[y * w + x] * env.intensity);
-                    integral += lum as f64 * solid_angle as f64;
-                    for r in y * split..(y + 1) * split {
-                        let sin_center = (PI * (r as f32 + 0.5) / rows as f32).sin();
-                        texel_weights[r * w + x] = lum * sin_center;
-                    }
-                }
-            }
+            let (texel_weights, rows, integral) = environment_weights(env, |_| true);
+            let w = env.width as usize;
             let distribution = Distribution2D::new(&texel_weights, w, rows);
             let power = if distribution.is_some() {
                 disk * integral as f32
@@ -816,14 +799,47 @@ fn solid_angle(t: &TriangleLight, p: Vec3, q: Vec3) -> Option<(Vec3, f32, f32)> 
 /// Solid-angle density (without selection) of environment direction `dir`.
 #[inline]
 fn environment_pdf_uv(light: &EnvironmentLight, uv: Vec2) -> f32 {
-    let Some(d) = &light.distribution else {
-        return 0.0;
-    };
+    light
+        .distribution
+        .as_ref()
+        .map_or(0.0, |d| distribution_pdf(d, uv))
+}
+
+/// Solid-angle density of environment direction `uv` under distribution `d` (of
+/// [`environment_weights`]).
+#[inline]
+fn distribution_pdf(d: &Distribution2D, uv: Vec2) -> f32 {
     let sin_theta = (uv.y * PI).sin();
     if sin_theta.is_nan() || sin_theta <= 0.0 {
         return 0.0;
     }
     d.pdf(uv) / (2.0 * PI * PI * sin_theta)
+}
+
+/// The environment's sampling weights: luminance * sin(theta) per cell of a `width` x `rows`
+/// grid (maps under [`MIN_ENVIRONMENT_ROWS`] high get several rows per texel row, so the
+/// density follows sin(theta); every cell lies inside one texel), for the texels `keep`
+/// accepts (by index, row-major; the others weigh 0); with `rows` and the integral of their
+/// luminance over the sphere.
+fn environment_weights(env: &Environment, keep: impl Fn(usize) -> bool) -> (Vec<f32>, usize, f64) {
+    let (w, h) = (env.width as usize, env.height as usize);
+    let split = MIN_ENVIRONMENT_ROWS.div_ceil(h.max(1));
+    let rows = h * split;
+    let mut texel_weights = vec![0.0f32; w * rows];
+    let mut integral = 0.0f64;
+    for y in 0..h {
+        let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
+        let solid_angle = (2.0 * PI / w as f32) * (t0.cos() - t1.cos());
+        for x in (0..w).filter(|&x| keep(y * w + x)) {
+            let lum = weight(env.texels[y * w + x] * env.intensity);
+            integral += lum as f64 * solid_angle as f64;
+            for r in y * split..(y + 1) * split {
+                let sin_center = (PI * (r as f32 + 0.5) / rows as f32).sin();
+                texel_weights[r * w + x] = lum * sin_center;
+            }
+        }
+    }
+    (texel_weights, rows, integral)
 }
 
 #[inline]

@@ -10,15 +10,16 @@ use glam::{Vec2, Vec3};
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::{hash, Rng};
 
-use crate::bsdf::Microfacet;
+use crate::bsdf::{Bsdf, Microfacet};
 use crate::camera::Camera;
+use crate::light::LightSample;
 use crate::sampler::PixelSampler;
 use crate::sampler::SamplerKind;
 use crate::surface::{offset_origin, Shading, Surface};
 use crate::world::World;
 
 /// Sampler dimensions used by the camera (film jitter and lens).
-const CAMERA_DIMENSIONS: u32 = 4;
+pub(crate) const CAMERA_DIMENSIONS: u32 = 4;
 /// Sampler dimensions used per path vertex: light choice, light point (2), lobe, direction (2),
 /// Russian roulette, and one spare so that each vertex starts a fresh set of four.
 const VERTEX_DIMENSIONS: u32 = 8;
@@ -270,6 +271,47 @@ impl PathTracer<'_> {
         None
     }
 
+    /// Light sample `ls` at a vertex (its surface, shading, BSDF, and the directions toward
+    /// the viewer `wo`, in world and local space): the BSDF times the cosine toward the light,
+    /// the transmittance to it (shadow rays counted in `rays`) and the BSDF's density of its
+    /// direction; `None` when it adds nothing.
+    #[inline(always)]
+    pub(crate) fn toward_light(
+        &self,
+        (surface, shading, bsdf, wo, wo_local): (&Surface, &Shading, &Bsdf, Vec3, Vec3),
+        ls: &LightSample,
+        rays: &mut u32,
+    ) -> Option<(Vec3, f32, f32)> {
+        let wi_local = surface.to_local(ls.wi);
+        // Reflection needs both directions on the same geometric side.
+        let same_side = ls.wi.dot(surface.ng) * wo.dot(surface.ng) > 0.0;
+        let (f, bsdf_pdf) = bsdf.eval_pdf(wo_local, wi_local);
+        let f = f * wi_local.z.abs();
+        if ls.pdf > 0.0 && f != Vec3::ZERO && (same_side || shading.params.transmission > 0.0) {
+            let tr = self.transmittance(surface, ls.wi, ls.distance, rays);
+            if tr > 0.0 {
+                return Some((f, tr, bsdf_pdf));
+            }
+        }
+        None
+    }
+
+    /// The light `ls` reflected toward `wo` at `v` (BSDF `bsdf`) by next event estimation
+    /// alone (no other strategy finds it): shadow rays counted in `rays`.
+    #[inline]
+    pub(crate) fn light_alone(
+        &self,
+        v: &Vertex,
+        bsdf: &Bsdf,
+        wo: Vec3,
+        ls: &LightSample,
+        rays: &mut u32,
+    ) -> Vec3 {
+        let toward = (&v.surface, &v.shading, bsdf, wo, v.surface.to_local(wo));
+        self.toward_light(toward, ls, rays)
+            .map_or(Vec3::ZERO, |(f, tr, _)| f * ls.radiance * (tr / ls.pdf))
+    }
+
     /// The fraction of light that passes from surface point `surface` along `dir` to a light
     /// `distance` away (1 or 0 for opaque scenes; blended surfaces let 1 - alpha through).
     pub(crate) fn transmittance(
@@ -459,24 +501,14 @@ impl PathTracer<'_> {
                 add(&mut out, 0, direct);
             } else if !bsdf.is_delta() && !lights.is_empty() {
                 if let Some(ls) = lights.sample(surface.p, u_light, u_point) {
-                    let wi_local = surface.to_local(ls.wi);
-                    // Reflection needs both directions on the same geometric side.
-                    let same_side = ls.wi.dot(surface.ng) * wo.dot(surface.ng) > 0.0;
-                    let (f, bsdf_pdf) = bsdf.eval_pdf(wo_local, wi_local);
-                    let f = f * wi_local.z.abs();
-                    if ls.pdf > 0.0
-                        && f != Vec3::ZERO
-                        && (same_side || shading.params.transmission > 0.0)
-                    {
-                        let tr = self.transmittance(surface, ls.wi, ls.distance, &mut out.rays);
-                        if tr > 0.0 {
-                            let w = if ls.delta || last {
-                                1.0
-                            } else {
-                                power_heuristic(ls.pdf, bsdf_pdf)
-                            };
-                            add(&mut out, bounce, beta * f * ls.radiance * (tr * w / ls.pdf));
-                        }
+                    let toward = (surface, shading, &bsdf, wo, wo_local);
+                    if let Some((f, tr, bsdf_pdf)) = self.toward_light(toward, &ls, &mut out.rays) {
+                        let w = if ls.delta || last {
+                            1.0
+                        } else {
+                            power_heuristic(ls.pdf, bsdf_pdf)
+                        };
+                        add(&mut out, bounce, beta * f * ls.radiance * (tr * w / ls.pdf));
                     }
                 }
             }

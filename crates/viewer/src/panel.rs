@@ -413,6 +413,7 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             ui.label("cached light");
             ui.radio_value(&mut t.terms, CachedTerms::Indirect, "indirect");
             ui.radio_value(&mut t.terms, CachedTerms::All, "all");
+            ui.radio_value(&mut t.terms, CachedTerms::Sky, "sky");
         });
         ui.add(egui::Slider::new(&mut t.lod_bias, -2.0..=4.0).text("level bias"));
         ui.horizontal(|ui| {

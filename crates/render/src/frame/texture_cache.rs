@@ -25,8 +25,15 @@
 //! What is cached (`terms`): `"all"` (the default), the direct light too (next event
 //! estimation at the cell), and the pixel traces no shadow ray; `"indirect"`, the light
 //! arriving at the cell through at least one more bounce (what the path tracer's split calls
-//! indirect). Pixels on glossy (`min_roughness`), metallic, transmissive or mirror-like
-//! surfaces bypass the cache: their whole path is traced per pixel, as without it. The cached
+//! indirect); `"sky"`, all but the environment's sun ([`crate::light::sun`]: next event
+//! estimation at the cell with the sky in the environment's place), while each pixel lights
+//! itself by the sun (next event estimation at its own first hit, one shadow ray): the sun's
+//! shadows stay sharp where a texel would spread them over its neighbours (the error that
+//! dominated `"all"` along the interior's orbit: bright texels leaking into shade, which
+//! relMSE weighs most), for a shadow ray per pixel; without a sun, as `"all"`. With ReSTIR
+//! (seed 004), a cached pixel's direct light is its reservoir's whatever the cache holds.
+//! Pixels on glossy (`min_roughness`), metallic, transmissive or mirror-like surfaces bypass
+//! the cache: their whole path is traced per pixel, as without it. The cached
 //! light is the cosine-weighted mean of the incoming light (a white Lambertian's reflected
 //! light); the pixel's BSDF albedo makes it exact for Lambertian surfaces and an approximation
 //! for the rough specular layer of the surfaces that do not bypass (their specular lobe sees
@@ -83,11 +90,12 @@ use glam::{UVec2, Vec3};
 use pathlight_core::rng::{hash, Rng};
 use serde::{Deserialize, Serialize};
 
-use crate::bsdf::BsdfParams;
+use crate::bsdf::{Bsdf, BsdfParams};
 use crate::camera::Camera;
 use crate::error::ConfigError;
 use crate::footprint::Footprint;
-use crate::path::{PathSettings, PathTracer, Vertex};
+use crate::light::sun::{Part, SunAndSky};
+use crate::path::{PathSettings, PathTracer, Vertex, CAMERA_DIMENSIONS};
 use crate::sampler::PixelSampler;
 use crate::surface_grid::{Cell, SurfaceGrids};
 use crate::world::World;
@@ -137,6 +145,10 @@ pub enum CachedTerms {
     Indirect,
     /// Direct light too.
     All,
+    /// All but the environment's sun ([`SunAndSky`]): each pixel adds the sun's direct light
+    /// by next event estimation at its own first hit (sharp shadows where they fall, not
+    /// spread over texels). Without an environment or without a sun, as `all`.
+    Sky,
 }
 
 /// How a cell's samples of successive frames combine.
@@ -289,7 +301,7 @@ impl TextureCacheConfig {
     fn channels(&self) -> usize {
         match self.terms {
             CachedTerms::Indirect => 3,
-            CachedTerms::All => 6,
+            CachedTerms::All | CachedTerms::Sky => 6,
         }
     }
 }
@@ -641,6 +653,8 @@ pub struct CacheReport {
 pub struct TextureCache {
     /// The grids of the world they were made for (its address and triangle count).
     grids: Option<(usize, usize, SurfaceGrids)>,
+    /// The environment's sun and sky, of the same world as the grids (`terms = "sky"`).
+    sun: SunAndSky,
     samples: Table,
     texels: Table,
     /// The tables' configuration (budget's bits, channels): a change reallocates them.
@@ -661,6 +675,7 @@ pub struct TextureCache {
 pub struct CacheFrame<'a> {
     cache: &'a TextureCache,
     grids: &'a SurfaceGrids,
+    sun: &'a SunAndSky,
     cfg: &'a TextureCacheConfig,
     /// The path tracer for the pixels' own terms at a cached first hit (no continuation).
     short: PathSettings,
@@ -717,6 +732,7 @@ impl TextureCache {
         );
         if self.grids.as_ref().map(|g| (g.0, g.1)) != Some(id) {
             self.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
+            self.sun = SunAndSky::new(&world.lights);
             self.clear = true;
         }
         let layout = (cfg.budget_mb.to_bits(), cfg.channels());
@@ -749,11 +765,12 @@ impl TextureCache {
         CacheFrame {
             cache: self,
             grids: &self.grids.as_ref().expect("made above").2,
+            sun: &self.sun,
             cfg,
             short: PathSettings {
                 max_bounces: Some(match cfg.terms {
                     CachedTerms::Indirect => 1,
-                    CachedTerms::All => 0,
+                    CachedTerms::All | CachedTerms::Sky => 0,
                 }),
                 mis_at_last: true,
                 ..settings
@@ -932,15 +949,25 @@ impl CacheFrame<'_> {
         };
         let albedo = directional_albedo(&bsdf, v.surface.to_local(-hit.ray.direction), albedo_rng);
         let indirect = albedo * Vec3::from_slice(&light[self.cfg.channels() - 3..]);
-        let mut d = s.direct;
-        if self.cfg.terms == CachedTerms::All && direct.is_none() {
-            d += albedo * Vec3::from_slice(&light[..3]);
-        }
+        // The direct light: the pixel's own (`indirect`: traced above), the reservoir's
+        // (seed 004: every light's, the cache's unused), or the cache's (and the pixel's sun
+        // with `sky`).
+        let cached = match (self.cfg.terms, direct) {
+            (CachedTerms::Indirect, _) | (_, Some(_)) => Vec3::ZERO,
+            (CachedTerms::All | CachedTerms::Sky, None) => albedo * Vec3::from_slice(&light[..3]),
+        };
+        let own = match (self.cfg.terms, direct) {
+            (CachedTerms::Indirect, _) => Vec3::ZERO,
+            (_, Some(reservoir)) => reservoir,
+            (CachedTerms::All, None) => Vec3::ZERO,
+            (CachedTerms::Sky, None) => self.sunlight(tracer, v, &bsdf, hit, &mut rays),
+        };
+        let d = s.direct + own + cached;
         *record = CachePixel {
             key,
             level: cell.level,
             status,
-            light: indirect + d - s.direct,
+            light: indirect + cached,
             ..*record
         };
         let bounce = crate::path::Bounce {
@@ -948,6 +975,32 @@ impl CacheFrame<'_> {
             ..s.bounce
         };
         Some((d, indirect, rays, bounce))
+    }
+
+    /// With `terms = "sky"`: the direct light of the environment's sun at first hit `v` (BSDF
+    /// `bsdf`) of camera sample `hit`, one sample by next event estimation from the
+    /// dimensions the path's first vertex would have taken for its light's point; its shadow
+    /// ray counted in `rays`.
+    fn sunlight(
+        &self,
+        tracer: &PathTracer,
+        v: &Vertex,
+        bsdf: &Bsdf,
+        hit: &PrimaryHit,
+        rays: &mut u64,
+    ) -> Vec3 {
+        let mut sampler = hit.sampler.clone();
+        sampler.set_dimension(CAMERA_DIMENSIONS + 1);
+        let Some(ls) = self
+            .sun
+            .sample(&tracer.world.lights, Part::Sun, sampler.next_2d())
+        else {
+            return Vec3::ZERO;
+        };
+        let mut r = 0;
+        let l = tracer.light_alone(v, bsdf, -hit.ray.direction, &ls, &mut r);
+        *rays += r as u64;
+        l
     }
 
     /// The light at barycentrics `bary` of `cell`'s triangle and level into `out`: the
@@ -1185,15 +1238,36 @@ impl CacheFrame<'_> {
                 count,
             );
             let rng = Rng::new(hash(&[self.seed, key]), count as u64);
-            // Caching indirect light alone: no next event estimation at the cell (its direct
-            // light is the pixel's own).
-            let direct = (ch == 3).then_some(Vec3::ZERO);
+            // Without the direct light of every light: no next event estimation at the cell
+            // (the pixel's own); the sky's by next event estimation alone, from the dimensions
+            // the path's would have taken.
+            // Every light but the sun (`sky`) by next event estimation alone, from the
+            // dimensions the path's would have taken; then no next event estimation at the
+            // cell (with `indirect` its direct light is the pixel's own).
+            let sky = (self.cfg.terms == CachedTerms::Sky).then(|| {
+                let mut s = sampler.clone();
+                s.set_dimension(CAMERA_DIMENSIONS);
+                let (u_select, u) = (s.next_1d(), s.next_2d());
+                let ls =
+                    self.sun
+                        .sample_with(&world.lights, Part::Sky, vertex.surface.p, u_select, u);
+                let bsdf = world.bsdf(vertex.surface.material, &vertex.shading.params);
+                let mut r = 0;
+                let l = ls.map_or(Vec3::ZERO, |ls| {
+                    tracer.light_alone(&vertex, &bsdf, -ray.direction, &ls, &mut r)
+                });
+                *rays += r as u64;
+                l
+            });
+            let direct = (self.cfg.terms != CachedTerms::All).then_some(Vec3::ZERO);
             let s = tracer.trace_lit::<false>(ray, Some(&vertex), sampler, rng, direct);
             *rays += s.rays as u64;
             cells += 1;
             let mut v = [0.0f32; 6];
             v[ch - 3..ch].copy_from_slice(&s.indirect.to_array());
-            if ch == 6 {
+            if let Some(sky) = sky {
+                v[..3].copy_from_slice(&sky.to_array());
+            } else if ch == 6 {
                 let le = world.lights.emitted(
                     &world.scene,
                     cell.instance,

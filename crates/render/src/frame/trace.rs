@@ -308,48 +308,63 @@ pub fn lighting<P: Plan>(
 ) -> u64 {
     let w = gbuffer.width.max(1) as usize;
     let along = plan.along_first_bounce();
-    let (cache, records) = match cache {
-        Some((c, r)) => (Some(c), r.chunks_mut(RUN).map(Some).collect()),
-        None => (None, Vec::new()),
+    // Run `b` (its pixels' light `ls`, first hits `run`, and with the cache its pixels'
+    // records).
+    let light_run = |b: usize,
+                     ls: &mut [LightSample],
+                     run: &Vec<Option<PrimaryHit>>,
+                     mut cache: Option<(&CacheFrame, &mut [CachePixel])>| {
+        let mut rays = 0;
+        let start = b * RUN;
+        for (k, ((l, hit), (x, y))) in ls.iter_mut().zip(run).zip(run_pixels(start, w)).enumerate()
+        {
+            let Some(hit) = hit else { continue };
+            let p = start + k;
+            let Some(index) = plan.sample(p) else {
+                continue;
+            };
+            let spp = plan.keep(p, &gbuffer.pixels[p]);
+            let mut shadow = 0;
+            let d = if spp > 0 {
+                direct(p, &mut shadow)
+            } else {
+                None
+            };
+            let (sample, r) = match cache.as_mut() {
+                Some((c, rec)) => c.light(tracer, x, y, hit, index, spp, along, d, &mut rec[k]),
+                None => lighting::light(tracer, x, y, hit, index, spp, along, d),
+            };
+            *l = sample;
+            rays += r + shadow as u64;
+        }
+        rays
     };
-    let mut records: Vec<Option<&mut [CachePixel]>> = records;
-    records.resize_with(hits.len(), || None);
-    lighting
-        .par_chunks_mut(RUN)
-        .zip(hits.par_iter())
-        .zip(records.into_par_iter())
+    let Some((cache, records)) = cache else {
+        return lighting
+            .par_chunks_mut(RUN)
+            .zip(hits.par_iter())
+            .enumerate()
+            .map(|(b, (ls, run))| light_run(b, ls, run, None))
+            .sum();
+    };
+    // With the texture cache, the runs go down columns of the image [`BAND`] pixels wide,
+    // one after the other, rather than along its rows: the cells a run needs (with their
+    // filter's neighbours) are then mostly those the runs just above needed, and a small cache
+    // holds them (the budget's sweep, BENCHMARKS.md "Seed 002").
+    let mut runs: Vec<_> = lighting
+        .chunks_mut(RUN)
+        .zip(hits)
+        .zip(records.chunks_mut(RUN))
         .enumerate()
-        .map(|(b, ((ls, run), mut records))| {
-            let mut rays = 0;
-            let start = b * RUN;
-            for (k, ((l, hit), (x, y))) in
-                ls.iter_mut().zip(run).zip(run_pixels(start, w)).enumerate()
-            {
-                let Some(hit) = hit else { continue };
-                let p = start + k;
-                let Some(index) = plan.sample(p) else {
-                    continue;
-                };
-                let spp = plan.keep(p, &gbuffer.pixels[p]);
-                let mut shadow = 0;
-                let d = if spp > 0 {
-                    direct(p, &mut shadow)
-                } else {
-                    None
-                };
-                let (sample, r) = match (cache, records.as_deref_mut()) {
-                    (Some(c), Some(rec)) => {
-                        c.light(tracer, x, y, hit, index, spp, along, d, &mut rec[k])
-                    }
-                    _ => lighting::light(tracer, x, y, hit, index, spp, along, d),
-                };
-                *l = sample;
-                rays += r + shadow as u64;
-            }
-            rays
-        })
+        .collect();
+    runs.sort_by_key(|&(b, _)| ((b * RUN % w) / BAND, b));
+    runs.into_par_iter()
+        .map(|(b, ((ls, run), records))| light_run(b, ls, run, Some((cache, records))))
         .sum()
 }
+
+/// The width of the columns the lighting pass goes down with the texture cache (pixels).
+const BAND: usize = 128;
 
 /// The primary pass over a run's camera samples (drained): their rays traced together
 /// (neighbouring pixels' rays go as packets), then each followed to its first surface;

@@ -1,0 +1,251 @@
+//! The environment's sun apart from its sky: two sampling distributions over the environment
+//! map, one over the sun's texels and one over the rest, so that a caller can light a point by
+//! the sun alone (sharp shadows, evaluated where they fall) and by the sky alone (broad light
+//! that a cache can hold and filter: seed 002's `terms = "sky"`).
+//!
+//! The sun: the texels at least [`SUN_FRACTION`] as bright as the brightest (luminance),
+//! if together they cover at most [`MAX_SUN_SOLID_ANGLE`]; a map whose bright texels cover
+//! more (an overcast sky, a studio's soft boxes) has no sun and is all sky. The two parts
+//! partition the texels, so the sun's and the sky's light add up to the environment's.
+//! [`SunAndSky::sample_with`] samples the scene's other lights with either part in the
+//! environment's place.
+
+use glam::{Vec2, Vec3};
+
+use super::{distribution_pdf, environment_weights, weight, LightSample, Lights};
+use crate::distribution::Distribution2D;
+
+/// A texel belongs to the sun if its luminance is at least this fraction of the brightest's.
+pub const SUN_FRACTION: f32 = 0.01;
+/// The sun's texels cover at most this solid angle (sr; the sun's disk is 6.8e-5 sr, and
+/// 1K maps blur it over a few hundred times that at most).
+pub const MAX_SUN_SOLID_ANGLE: f32 = 0.01;
+
+/// Which part of the environment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    Sun,
+    Sky,
+}
+
+/// The environment of a [`Lights`] split into its sun and its sky.
+#[derive(Debug, Clone, Default)]
+pub struct SunAndSky {
+    sun: Option<Distribution2D>,
+    sky: Option<Distribution2D>,
+    /// The sun's texels.
+    pub sun_texels: usize,
+    /// The sun's share of the environment's power (luminance over the sphere).
+    pub sun_share: f32,
+}
+
+impl SunAndSky {
+    /// The split of `lights`' environment: no sun and no sky without one.
+    pub fn new(lights: &Lights) -> Self {
+        let Some(light) = &lights.environment else {
+            return Self::default();
+        };
+        let env = &light.env;
+        let lum: Vec<f32> = env
+            .texels
+            .iter()
+            .map(|&t| weight(t * env.intensity))
+            .collect();
+        let brightest = lum.iter().copied().fold(0.0f32, f32::max);
+        let threshold = SUN_FRACTION * brightest;
+        let (w, h) = (env.width as usize, env.height.max(1) as usize);
+        let row_solid_angle = |y: usize| {
+            let (t0, t1) = (
+                std::f32::consts::PI * y as f32 / h as f32,
+                std::f32::consts::PI * (y + 1) as f32 / h as f32,
+            );
+            (2.0 * std::f32::consts::PI / w as f32) * (t0.cos() - t1.cos())
+        };
+        let in_sun = |i: usize| brightest > 0.0 && lum[i] >= threshold;
+        let solid_angle: f32 = (0..lum.len())
+            .filter(|&i| in_sun(i))
+            .map(|i| row_solid_angle(i / w.max(1)))
+            .sum();
+        let has_sun = brightest > 0.0 && solid_angle <= MAX_SUN_SOLID_ANGLE;
+        let is_sun = |i: usize| has_sun && in_sun(i);
+        let (sun_weights, rows, sun_power) = environment_weights(env, is_sun);
+        let (sky_weights, _, sky_power) = environment_weights(env, |i| !is_sun(i));
+        let total = sun_power + sky_power;
+        Self {
+            sun: Distribution2D::new(&sun_weights, w, rows),
+            sky: Distribution2D::new(&sky_weights, w, rows),
+            sun_texels: (0..lum.len()).filter(|&i| is_sun(i)).count(),
+            sun_share: if total > 0.0 {
+                (sun_power / total) as f32
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// As [`Lights::sample`] at `p`, with the environment's `part` in the environment's place
+    /// (picked with the environment's probability): next event estimation of every light but
+    /// the environment's other part.
+    pub fn sample_with(
+        &self,
+        lights: &Lights,
+        part: Part,
+        p: Vec3,
+        u_select: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let (index, select) = lights.choose(u_select)?;
+        if lights.environment.is_some() && index + 1 == lights.count {
+            let ls = self.sample(lights, part, u)?;
+            return Some(LightSample {
+                pdf: ls.pdf * select,
+                ..ls
+            });
+        }
+        let (ls, _) = lights.evaluate_selected(p, &lights.sample_point(index, u)?, select)?;
+        Some(ls)
+    }
+
+    /// Whether the environment has a sun.
+    pub fn has_sun(&self) -> bool {
+        self.sun.is_some()
+    }
+
+    /// A direction toward `part` of `lights`' environment (the one this split was made from)
+    /// drawn in proportion to its luminance * sin(theta): its radiance and solid-angle density.
+    /// `None` when the part is black or absent.
+    pub fn sample(&self, lights: &Lights, part: Part, u: Vec2) -> Option<LightSample> {
+        let d = match part {
+            Part::Sun => self.sun.as_ref()?,
+            Part::Sky => self.sky.as_ref()?,
+        };
+        let env = &lights.environment.as_ref()?.env;
+        let (uv, _) = d.sample(u);
+        let wi = env.uv_to_direction(uv);
+        // The density and radiance of the direction itself (the texel it falls in), as the
+        // environment's own sampling finds them.
+        let uv = env.direction_to_uv(wi);
+        let pdf = distribution_pdf(d, uv);
+        let radiance = env.radiance_at_uv(uv);
+        (pdf > 0.0 && pdf.is_finite() && radiance != Vec3::ZERO).then_some(LightSample {
+            wi,
+            distance: f32::INFINITY,
+            radiance,
+            pdf,
+            delta: false,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::light::LightSelection;
+    use pathlight_scene::{Environment, Scene};
+
+    /// A blue sky with a sun of 20,000 in three texels.
+    fn sunny(w: u32, h: u32) -> Environment {
+        let mut env = Environment::constant(Vec3::splat(0.5));
+        env.width = w;
+        env.height = h;
+        env.texels = vec![Vec3::new(0.4, 0.5, 0.7); (w * h) as usize];
+        for (x, y) in [(10, 8), (11, 8), (10, 9)] {
+            env.texels[(y * w + x) as usize] = Vec3::splat(20_000.0);
+        }
+        env
+    }
+
+    fn lights_of(env: Environment) -> Lights {
+        let scene = Scene {
+            environment: Some(env),
+            ..Scene::default()
+        };
+        Lights::new(&scene, LightSelection::Power)
+    }
+
+    /// The sun's and the sky's estimates of the irradiance of an upward-facing point add up to
+    /// the environment's, found by brute force over the sphere's texels (independent of the
+    /// distributions); the sun is the three bright texels.
+    #[test]
+    fn sun_and_sky_add_up_to_the_environment() {
+        let env = sunny(256, 128);
+        let lights = lights_of(env.clone());
+        let split = SunAndSky::new(&lights);
+        assert!(split.has_sun());
+        assert_eq!(split.sun_texels, 3);
+        assert!(
+            split.sun_share > 0.5 && split.sun_share < 1.0,
+            "{}",
+            split.sun_share
+        );
+        // Irradiance at a point facing +Y: the integral of L cos over the upper hemisphere, by
+        // summing the texels (midpoint rule on a fine grid of directions per texel).
+        let (w, h) = (env.width as usize, env.height as usize);
+        let mut exact = [0.0f64; 2];
+        let sub = 4;
+        for y in 0..h * sub {
+            for x in 0..w * sub {
+                let uv = Vec2::new(
+                    (x as f32 + 0.5) / (w * sub) as f32,
+                    (y as f32 + 0.5) / (h * sub) as f32,
+                );
+                let dir = env.uv_to_direction(uv);
+                let theta = uv.y * std::f32::consts::PI;
+                let d_omega = (2.0 * std::f32::consts::PI / (w * sub) as f32)
+                    * (std::f32::consts::PI / (h * sub) as f32)
+                    * theta.sin();
+                let cos = dir.y.max(0.0);
+                let l = env.radiance_at_uv(uv);
+                let texel = (uv.y * h as f32) as usize * w + (uv.x * w as f32) as usize;
+                let part = usize::from(env.texels[texel].x < 1000.0);
+                exact[part] += (l.y * cos * d_omega) as f64;
+            }
+        }
+        for (k, part) in [Part::Sun, Part::Sky].into_iter().enumerate() {
+            let n = 200_000;
+            let mut rng = pathlight_core::rng::Rng::new(5, k as u64);
+            let mut sum = 0.0f64;
+            for _ in 0..n {
+                let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                if let Some(ls) = split.sample(&lights, part, u) {
+                    sum += (ls.radiance.y * ls.wi.y.max(0.0) / ls.pdf) as f64;
+                }
+            }
+            let estimate = sum / n as f64;
+            let rel = (estimate - exact[k]).abs() / exact[k];
+            assert!(rel < 0.01, "{part:?}: {estimate} against {}", exact[k]);
+        }
+        // Nothing sampled from one part falls in the other.
+        let mut rng = pathlight_core::rng::Rng::new(9, 0);
+        for _ in 0..10_000 {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            let sun = split.sample(&lights, Part::Sun, u).unwrap();
+            assert!(sun.radiance.x > 1000.0);
+            let sky = split.sample(&lights, Part::Sky, u).unwrap();
+            assert!(sky.radiance.x < 1.0);
+        }
+    }
+
+    /// A map without a concentrated bright spot (its bright texels cover a wide solid angle)
+    /// has no sun: the sky is the whole environment.
+    #[test]
+    fn an_overcast_map_has_no_sun() {
+        let mut env = sunny(256, 128);
+        for t in env.texels.iter_mut().take(256 * 32) {
+            *t = Vec3::splat(3.0);
+        }
+        env.texels[5] = Vec3::splat(20.0);
+        let lights = lights_of(env);
+        let split = SunAndSky::new(&lights);
+        assert!(!split.has_sun());
+        assert_eq!(split.sun_share, 0.0);
+        assert!(split
+            .sample(&lights, Part::Sky, Vec2::new(0.3, 0.1))
+            .is_some());
+        assert!(
+            SunAndSky::new(&Lights::new(&Scene::default(), LightSelection::Power))
+                .sample(&lights, Part::Sky, Vec2::splat(0.5))
+                .is_none()
+        );
+    }
+}
