@@ -153,15 +153,7 @@ fn the_cached_cornell_box_converges_to_the_reference() {
         max_bounces: Some(2),
         ..config(48, 48, 1)
     };
-    let reference = {
-        let cfg = Config {
-            spp: 512,
-            seed: 77,
-            ..base.clone()
-        };
-        let film = render(&world, &cfg.render_camera(&world), &cfg);
-        film.pixels.iter().map(|p| p.mean).collect::<Vec<_>>()
-    };
+    let reference = reference(&world, &base, 512);
     let mut plain = base.clone();
     plain.frame.texture_cache.enabled = false;
     for terms in [
@@ -189,6 +181,18 @@ fn the_cached_cornell_box_converges_to_the_reference() {
         assert!((ratio - 1.0).abs() < 0.01, "{terms:?}: ratio {ratio}");
         assert!(worst < 0.12, "{terms:?}: worst block {worst}");
     }
+}
+
+/// The reference path tracer's image of `world` with `base`'s settings at `spp` samples per
+/// pixel (another seed than the frames').
+fn reference(world: &World, base: &Config, spp: u32) -> Vec<Vec3> {
+    let cfg = Config {
+        spp,
+        seed: 77,
+        ..base.clone()
+    };
+    let film = render(world, &cfg.render_camera(world), &cfg);
+    film.pixels.iter().map(|p| p.mean).collect()
 }
 
 /// The mean of `image`'s pixels (all channels), and the worst relative difference of an 8x8
@@ -234,7 +238,7 @@ fn sunny_ball_and_floor() -> World {
 }
 
 /// Still frames through the cache holding the sky's light (each pixel lit by the sun at its
-/// own point) converge to the reference path tracer's image under a sun, through the default
+/// own point) converge to the reference path tracer's image under a sun, through a Gaussian
 /// filter: the mean within 1%, each 8x8 block within 8%; holding the sun's light too (`all`),
 /// its shadow's edge spreads over the filtered texels (blocks 14% off): per pixel, the image
 /// is further from the reference (the relative L2 distance, sqrt(sum (a - b)^2 / sum b^2):
@@ -248,19 +252,14 @@ fn the_sun_lights_each_pixel_and_the_cache_holds_the_sky() {
     };
     let split = pathlight_render::light::sun::SunAndSky::new(&world.lights);
     assert!(split.has_sun() && split.sun_share > 0.5, "{split:?}");
-    let reference = {
-        let cfg = Config {
-            spp: 1024,
-            seed: 77,
-            ..base.clone()
-        };
-        let film = render(&world, &cfg.render_camera(&world), &cfg);
-        film.pixels.iter().map(|p| p.mean).collect::<Vec<_>>()
-    };
+    let reference = reference(&world, &base, 1024);
     let mut l2 = Vec::new();
     for terms in [CachedTerms::Sky, CachedTerms::All] {
         let mut cfg = cached(&base, CacheFilter::Gaussian, terms);
-        cfg.frame.texture_cache.reshade = 0.0;
+        let t = &mut cfg.frame.texture_cache;
+        // (A window of 9 squares narrowing with the samples: the defaults' 13 squares, about
+        // 26 pixels, are half this 48-pixel image and blur the ball's contact shadow.)
+        (t.reshade, t.kernel, t.shrink) = (0.0, 9, 0.5);
         let mut pipeline = Pipeline::new(cfg);
         for _ in 0..128 {
             pipeline.render_frame(&world);

@@ -21,7 +21,7 @@ use pathlight_render::sampler::SamplerKind;
 use crate::navigation::Mode;
 
 /// The presets the panel offers: button, file, what it is for, the file compiled in.
-const PRESETS: [(&str, &str, &str, &str); 2] = [
+const PRESETS: [(&str, &str, &str, &str); 3] = [
     (
         "Real-time preset",
         "experiments/realtime.toml",
@@ -33,6 +33,12 @@ const PRESETS: [(&str, &str, &str, &str); 2] = [
         "experiments/realtime-many-lights.toml",
         "the real-time preset with ReSTIR DI, for scenes with hundreds of lights",
         include_str!("../../../experiments/realtime-many-lights.toml"),
+    ),
+    (
+        "Sun preset",
+        "experiments/realtime-sun.toml",
+        "the texture-space cache for scenes lit by a sun and a sky",
+        include_str!("../../../experiments/realtime-sun.toml"),
     ),
 ];
 use crate::{Viewer, SHORTCUTS};
