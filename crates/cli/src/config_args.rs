@@ -197,8 +197,9 @@ fn parse_filter(s: &str) -> Result<Method, String> {
         "data-driven" => Ok(Method::DataDriven),
         "svgf" => Ok(Method::Svgf),
         "rpf" => Ok(Method::Rpf),
+        "taa" => Ok(Method::Taa),
         _ => Err(format!(
-            "unknown filter {s:?}; one of none, data-driven, svgf, rpf (rpf: `render` only)"
+            "unknown filter {s:?}; one of none, data-driven, svgf, taa, rpf (rpf: `render` only)"
         )),
     }
 }

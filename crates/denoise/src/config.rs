@@ -71,12 +71,16 @@ pub enum Method {
     /// sample apart, so it runs on the reference path tracer's samples (`pathlight render
     /// --filter rpf`, or an `eval` configuration), not in the real-time frame.
     Rpf,
+    /// Temporal antialiasing alone ([`crate::taa`], SVGF's last stage without the filter) of
+    /// the accumulated image: for frames whose light is already smooth (seed 002's texture
+    /// cache), their single sample's edges averaged over frames as the jitter moves them.
+    Taa,
 }
 
 impl Method {
     /// True for the filters the real-time frame runs.
     pub fn in_frame(self) -> bool {
-        matches!(self, Self::DataDriven | Self::Svgf)
+        matches!(self, Self::DataDriven | Self::Svgf | Self::Taa)
     }
 }
 

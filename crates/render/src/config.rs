@@ -318,13 +318,13 @@ mod tests {
             ..m
         };
         assert_eq!(without, c);
-        // The sun preset: the texture cache holding all but the sun, no screen-space filter.
+        // The sun preset: the texture cache holding all but the sun, temporal antialiasing.
         let s = Config::realtime()
             .with_toml(include_str!("../../../experiments/realtime-sun.toml"))
             .unwrap();
         s.validate().unwrap();
         let t = &s.frame.texture_cache;
         assert!(t.enabled && t.terms == crate::frame::texture_cache::CachedTerms::Sky);
-        assert_eq!(s.frame.filter.method, pathlight_denoise::Method::None);
+        assert_eq!(s.frame.filter.method, pathlight_denoise::Method::Taa);
     }
 }

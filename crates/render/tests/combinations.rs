@@ -1,7 +1,8 @@
 //! Every combination of the frame's switches runs: seed 000's adaptive sampling and forward
 //! reprojection, seed 004's ReSTIR, seed 001's filters (none, the data-driven filter, SVGF
-//! with its handover to the data-driven filter), with and without accumulation, on a small
-//! textured scene with a dozen lights and a sky, with a still camera and a moving one. Every
+//! with its handover to the data-driven filter, temporal antialiasing alone), with and without
+//! accumulation, on a small textured scene with a dozen lights and a sky, with a still camera
+//! and a moving one. Every
 //! configuration is valid but seed 000's without accumulation, which is refused with its
 //! reason; every frame's image and history are finite, the frames are the same on 1 and 2
 //! threads, and every switch changes the frames of each combination it is part of.
@@ -24,11 +25,12 @@ const REPROJECTION: [&str; 2] = [
     "[frame.reprojection]\nenabled = true\nsamples = 4\nfresh_spp = 3\n",
 ];
 const RESTIR: [&str; 2] = ["", "[frame.restir]\nenabled = true\ncandidates = 8\n"];
-const FILTER: [&str; 3] = [
+const FILTER: [&str; 4] = [
     "",
     "[frame.filter]\nmethod = \"data-driven\"\nkernel = 5\nholes = true\n",
     "[frame.filter]\nmethod = \"svgf\"\natrous_kernel = 3\nsvgf_taa = true\n\
      svgf_still_handover = 2\n",
+    "[frame.filter]\nmethod = \"taa\"\n",
 ];
 const ACCUMULATE: [&str; 2] = ["", "[frame]\naccumulate = false\n"];
 
@@ -125,8 +127,8 @@ fn every_combination_runs_finite_whatever_the_thread_count() {
     for ((a, b), name) in one.iter().zip(&two).zip(&names) {
         assert!(a == b, "{name}: 1 and 2 threads differ");
     }
-    // 48 combinations, 18 of them seed 000's without accumulation; two cameras each.
-    assert_eq!(one.len(), (48 - 18) * 2);
+    // 64 combinations, 24 of them seed 000's without accumulation; two cameras each.
+    assert_eq!(one.len(), (64 - 24) * 2);
     // Every switch changes the frames of every combination it is part of (still or moving): a
     // technique its combination ignored would leave them as they were.
     let frames: std::collections::HashMap<&str, &Vec<u32>> =

@@ -224,6 +224,31 @@ fn svgf_brings_single_sample_frames_close_to_the_reference() {
     assert_eq!(filtered, run(1));
 }
 
+/// Temporal antialiasing alone (`method = "taa"`): the first frame has no previous output and
+/// is the unfiltered image bit for bit; over single-sample frames (no accumulation) it blends
+/// each frame with its clamped history, closer to the reference than the frame alone, and the
+/// same on one and two threads.
+#[test]
+fn temporal_antialiasing_alone_blends_frames_toward_the_reference() {
+    let world = cornell();
+    let mut c = config(Method::None);
+    (c.width, c.height) = (128, 96);
+    c.frame.accumulate = false;
+    let mut t = c.clone();
+    t.frame.filter.method = Method::Taa;
+    assert_eq!(frames(&world, &t, 1).image(), frames(&world, &c, 1).image());
+    let reference = reference(&world, &c);
+    let plain = frames(&world, &c, 16).image();
+    let run = |threads| in_pool(threads, || frames(&world, &t, 16).image());
+    let blended = run(2);
+    let (before, after) = (relmse(&plain, &reference), relmse(&blended, &reference));
+    assert!(
+        after < 0.7 * before,
+        "relMSE {after:.3e} antialiased vs {before:.3e}"
+    );
+    assert_eq!(blended, run(1));
+}
+
 /// SVGF hands over to the data-driven filter after `svgf_still_handover` frames of a still
 /// camera: before, its frames are SVGF's bit for bit, from then on the data-driven filter's of
 /// the same accumulated image bit for bit. When the camera moves on, SVGF filters again with

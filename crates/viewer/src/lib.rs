@@ -45,7 +45,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("R", "restart accumulation"),
     (
         "G",
-        "reconstruction filter (seed 001): none, data-driven, SVGF in turn",
+        "reconstruction filter (seed 001): none, data-driven, SVGF, TAA alone in turn",
     ),
     ("T", "texture-space shading cache (seed 002) on or off"),
     ("P", "save the shown frame as a PNG in the current folder"),
@@ -250,7 +250,8 @@ impl Viewer {
                     f.method = match f.method {
                         Method::None => Method::DataDriven,
                         Method::DataDriven => Method::Svgf,
-                        Method::Svgf | Method::Rpf => Method::None,
+                        Method::Svgf => Method::Taa,
+                        Method::Taa | Method::Rpf => Method::None,
                     };
                 }
                 Key::T => {

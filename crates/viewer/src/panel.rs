@@ -472,11 +472,13 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             Method::DataDriven => "data-driven",
             Method::Svgf => "svgf",
             Method::Rpf => "rpf (offline: pathlight render)",
+            Method::Taa => "taa",
         })
         .show_ui(ui, |ui| {
             ui.selectable_value(&mut f.method, Method::None, "none");
             ui.selectable_value(&mut f.method, Method::DataDriven, "data-driven");
             ui.selectable_value(&mut f.method, Method::Svgf, "svgf (spatio-temporal)");
+            ui.selectable_value(&mut f.method, Method::Taa, "taa (antialiasing)");
         });
     ui.add_enabled_ui(f.method == Method::Svgf, |ui| {
         ui.add(egui::Slider::new(&mut f.atrous_iterations, 1..=8).text("a-trous iterations"));

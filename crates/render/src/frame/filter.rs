@@ -204,6 +204,8 @@ pub struct Filter {
     data_driven: DataDriven,
     /// The spatio-temporal filter's history, and its inputs.
     svgf: Svgf,
+    /// Temporal antialiasing alone (`method = "taa"`): its last output.
+    taa: pathlight_denoise::taa::Taa,
     motion: Vec<Vec2>,
     emitter: Vec<bool>,
     /// Data-driven, `sky_coverage`: per pixel the share of samples that hit a surface and the
@@ -433,8 +435,30 @@ impl Filter {
                 self.run_data_driven(config, history, first, width, height)
             }
             Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
+            Method::Taa => {
+                self.run_taa(history, gbuffer);
+                Ok(())
+            }
             Method::None | Method::Rpf => Ok(()),
         }
+    }
+
+    /// Temporal antialiasing alone: the history's mean (the unfiltered image) blended with
+    /// the last output where its surface was.
+    fn run_taa(&mut self, history: &[PixelStats], gbuffer: &GBuffer) {
+        let n = history.len();
+        self.resize(n);
+        self.variance.clear();
+        self.motion.resize(n, Vec2::ZERO);
+        (&mut self.image, &mut self.motion)
+            .into_par_iter()
+            .zip(history.par_iter().zip(gbuffer.pixels.par_iter()))
+            .for_each(|((out, motion), (h, g))| {
+                *out = h.mean();
+                *motion = g.motion;
+            });
+        let (width, height) = (gbuffer.width as usize, gbuffer.height as usize);
+        self.taa.apply(&mut self.image, &self.motion, width, height);
     }
 
     fn run_svgf(
@@ -689,12 +713,14 @@ impl Filter {
     pub fn set_lanes(&mut self, lanes: &str) {
         self.data_driven.set_lanes(lanes);
         self.svgf.set_lanes(lanes);
+        self.taa.set_lanes(lanes);
     }
 
     /// Forgets the output (the filter was switched off).
     pub fn clear(&mut self) {
         self.data_driven.forget_shares();
         self.svgf.reset();
+        self.taa.reset();
         self.image.clear();
         self.variance.clear();
         self.kept.clear();
