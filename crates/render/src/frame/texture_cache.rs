@@ -22,10 +22,10 @@
 //!    sampling, or ReSTIR's reservoir), and the texel's light times its BSDF's directional
 //!    albedo ([`crate::bsdf::Bsdf::directional_albedo`]).
 //!
-//! What is cached (`terms`): `"all"`, the direct light too (next event
-//! estimation at the cell), and the pixel traces no shadow ray; `"indirect"`, the light
-//! arriving at the cell through at least one more bounce (what the path tracer's split calls
-//! indirect); `"sky"` (the default), all but the environment's sun ([`crate::light::sun`]: next event
+//! What is cached (`terms`): `"all"`, the direct light too (next event estimation at the
+//! cell), and the pixel traces no shadow ray; `"indirect"`, the light arriving at the cell
+//! through at least one more bounce (what the path tracer's split calls indirect); `"sky"`
+//! (the default), all but the environment's sun ([`crate::light::sun`]: next event
 //! estimation at the cell with the sky in the environment's place), while each pixel lights
 //! itself by the sun (next event estimation at its own first hit, one shadow ray): the sun's
 //! shadows stay sharp where a texel would spread them over its neighbours (the error that
@@ -1253,9 +1253,6 @@ impl CacheFrame<'_> {
                 count,
             );
             let rng = Rng::new(hash(&[self.seed, key]), count as u64);
-            // Without the direct light of every light: no next event estimation at the cell
-            // (the pixel's own); the sky's by next event estimation alone, from the dimensions
-            // the path's would have taken.
             // Every light but the sun (`sky`) by next event estimation alone, from the
             // dimensions the path's would have taken; then no next event estimation at the
             // cell (with `indirect` its direct light is the pixel's own).
