@@ -816,6 +816,12 @@ fn distribution_pdf(d: &Distribution2D, uv: Vec2) -> f32 {
     d.pdf(uv) / (2.0 * PI * PI * sin_theta)
 }
 
+/// The solid angle of a texel of row `y` of a `w` x `h` lat-long map.
+fn texel_solid_angle(y: usize, w: usize, h: usize) -> f32 {
+    let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
+    (2.0 * PI / w as f32) * (t0.cos() - t1.cos())
+}
+
 /// The environment's sampling weights: luminance * sin(theta) per cell of a `width` x `rows`
 /// grid (maps under [`MIN_ENVIRONMENT_ROWS`] high get several rows per texel row, so the
 /// density follows sin(theta); every cell lies inside one texel), for the texels `keep`
@@ -828,8 +834,7 @@ fn environment_weights(env: &Environment, keep: impl Fn(usize) -> bool) -> (Vec<
     let mut texel_weights = vec![0.0f32; w * rows];
     let mut integral = 0.0f64;
     for y in 0..h {
-        let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
-        let solid_angle = (2.0 * PI / w as f32) * (t0.cos() - t1.cos());
+        let solid_angle = texel_solid_angle(y, w, h);
         for x in (0..w).filter(|&x| keep(y * w + x)) {
             let lum = weight(env.texels[y * w + x] * env.intensity);
             integral += lum as f64 * solid_angle as f64;

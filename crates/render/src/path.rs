@@ -26,6 +26,14 @@ const VERTEX_DIMENSIONS: u32 = 8;
 /// Cut-out surfaces a ray may pass through before it counts as blocked.
 const MAX_ALPHA_LAYERS: u32 = 64;
 
+/// The film point (pixel (`x`, `y`) jittered uniformly) and lens point from a pixel's sampler
+/// (its first [`CAMERA_DIMENSIONS`]).
+#[inline(always)]
+fn film_and_lens(sampler: &mut PixelSampler, x: u32, y: u32) -> (Vec2, Vec2) {
+    let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+    (film, sampler.next_2d())
+}
+
 /// What one camera path brings back.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PathSample {
@@ -203,8 +211,7 @@ impl PathTracer<'_> {
     #[inline(always)]
     pub fn camera_sample(&self, x: u32, y: u32, index: u32) -> CameraSample {
         let mut sampler = self.pixel_sampler(x, y, index);
-        let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-        let lens = sampler.next_2d();
+        let (film, lens) = film_and_lens(&mut sampler, x, y);
         CameraSample {
             ray: self.camera.primary_ray(film, lens),
             film,
@@ -217,6 +224,13 @@ impl PathTracer<'_> {
                 Rng::new(0, 0)
             },
         }
+    }
+
+    /// The film and lens points of sample `index` of pixel (`x`, `y`), as
+    /// [`camera_sample`](Self::camera_sample) has them, without its ray.
+    #[inline]
+    pub fn film_lens(&self, x: u32, y: u32, index: u32) -> (Vec2, Vec2) {
+        film_and_lens(&mut self.pixel_sampler(x, y, index), x, y)
     }
 
     /// The sampler of sample `index` of pixel (`x`, `y`).

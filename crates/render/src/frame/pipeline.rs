@@ -217,13 +217,13 @@ impl Pipeline {
             if tc.enabled {
                 texture_cache.prepare(world, tc, f.pixels());
             }
-            let mut records = std::mem::take(&mut texture_cache.pixels);
-            let cache = (tc.enabled).then(|| texture_cache.frame(tc, f.settings, &camera));
+            let mut cache = tc
+                .enabled
+                .then(|| texture_cache.frame(tc, f.settings, &camera));
             let previous = f.previous_camera.as_ref();
             let (g, l, hits, times) = (&mut f.gbuffer, &mut f.lighting, &mut f.hits, &mut f.times);
-            let with_cache = cache.as_ref().map(|c| (c, &mut records[..]));
+            let with_cache = cache.as_mut().map(|(c, records)| (&*c, &mut **records));
             rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits, with_cache));
-            texture_cache.pixels = records;
             if tc.enabled {
                 let (report, ms) = texture_cache.report();
                 let ms = ms / rayon::current_num_threads() as f64;

@@ -119,6 +119,8 @@ const BLOCK: u32 = 2;
 const SQUARES: usize = (BLOCK * BLOCK) as usize;
 /// Cells in a block (each square's two halves).
 const CELLS: usize = 2 * SQUARES;
+/// Light channels per cell at most (direct and indirect, [`TextureCacheConfig::channels`]).
+const CHANNELS: usize = 6;
 /// Ways per set.
 const WAYS: usize = 8;
 /// Largest filter window.
@@ -304,7 +306,7 @@ impl TextureCacheConfig {
     fn channels(&self) -> usize {
         match self.terms {
             CachedTerms::Indirect => 3,
-            CachedTerms::All | CachedTerms::Sky => 6,
+            CachedTerms::All | CachedTerms::Sky => CHANNELS,
         }
     }
 }
@@ -315,7 +317,7 @@ const BUSY: u64 = 1;
 const READY: u64 = 2;
 const STATE: u64 = 3;
 
-/// A block of 4 x 4 squares of one side of one triangle's grid at one level.
+/// A block of [`BLOCK`] x [`BLOCK`] squares of one side of one triangle's grid at one level.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Block {
     instance: u32,
@@ -359,6 +361,11 @@ impl Block {
             upper: false,
         };
         (c.key() | 4) & !STATE
+    }
+
+    /// The key of the texel of cell `k` of the block (its place, Eq. 3 over texels).
+    fn texel_key(&self, k: usize) -> u64 {
+        hash(&[self.key(), k as u64])
     }
 
     /// The neighbouring block `d` blocks away, if it holds any square of the triangle.
@@ -663,6 +670,17 @@ pub struct CacheReport {
     pub bytes: u64,
 }
 
+/// The two tables, the frame they serve and its counts: what the lighting pass's threads
+/// share.
+#[derive(Default)]
+struct Caches {
+    samples: Table,
+    texels: Table,
+    /// Frames the cache has served (its slots' frame stamps; 0: never).
+    frame: u32,
+    counters: Counters,
+}
+
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
 #[derive(Default)]
 pub struct TextureCache {
@@ -670,16 +688,12 @@ pub struct TextureCache {
     grids: Option<(usize, usize, SurfaceGrids)>,
     /// The environment's sun and sky, of the same world as the grids (`terms = "sky"`).
     sun: SunAndSky,
-    samples: Table,
-    texels: Table,
+    cache: Caches,
     /// The tables' configuration (budget's bits, channels): a change reallocates them.
     layout: (u32, usize),
-    /// Frames the cache has served (its slots' frame stamps; 0: never).
-    frame: u32,
     clear: bool,
-    counters: Counters,
     /// Per pixel: what its first sample met.
-    pub pixels: Vec<CachePixel>,
+    pixels: Vec<CachePixel>,
     /// The next frame belongs to the same instant as the last (a stereo pair's second eye):
     /// it finds the cells and texels the last one shaded this frame instead of shading them
     /// again.
@@ -688,7 +702,7 @@ pub struct TextureCache {
 
 /// The cache as one frame's lighting pass reads it.
 pub struct CacheFrame<'a> {
-    cache: &'a TextureCache,
+    cache: &'a Caches,
     grids: &'a SurfaceGrids,
     sun: &'a SunAndSky,
     cfg: &'a TextureCacheConfig,
@@ -738,8 +752,8 @@ impl TextureCache {
     }
 
     /// Before the frame's lighting pass: the grids for `world`, the tables for `cfg`, the
-    /// frame's counters, and the pixels' records (`pixels` of them, taken out by the caller
-    /// for the lighting pass to fill, and given back).
+    /// frame's counters, and the pixels' records (`pixels` of them, for the lighting pass to
+    /// fill).
     pub fn prepare(&mut self, world: &World, cfg: &TextureCacheConfig, pixels: usize) {
         let id = (
             world as *const World as usize,
@@ -751,34 +765,35 @@ impl TextureCache {
             self.clear = true;
         }
         let layout = (cfg.budget_mb.to_bits(), cfg.channels());
-        if self.layout != layout || self.samples.slots() == 0 {
+        if self.layout != layout || self.cache.samples.slots() == 0 {
             let bytes = (cfg.budget_mb as f64 * (1 << 20) as f64) as usize;
-            self.samples = Table::new(bytes * 7 / 10, CELLS * (1 + layout.1));
-            self.texels = Table::new(bytes * 3 / 10, SQUARES * layout.1);
+            self.cache.samples = Table::new(bytes * 7 / 10, CELLS * (1 + layout.1));
+            self.cache.texels = Table::new(bytes * 3 / 10, SQUARES * layout.1);
             self.layout = layout;
             self.clear = false;
         }
         if std::mem::take(&mut self.clear) {
-            self.samples.clear();
-            self.texels.clear();
+            self.cache.samples.clear();
+            self.cache.texels.clear();
         }
-        if !std::mem::take(&mut self.same_instant) || self.frame == 0 {
-            self.frame = self.frame.wrapping_add(1).max(1);
+        if !std::mem::take(&mut self.same_instant) || self.cache.frame == 0 {
+            self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
         }
-        self.counters = Counters::default();
+        self.cache.counters = Counters::default();
         self.pixels.clear();
         self.pixels.resize(pixels, CachePixel::default());
     }
 
-    /// What the frame's lighting pass reads (after [`prepare`](Self::prepare)).
+    /// What the frame's lighting pass reads (after [`prepare`](Self::prepare)), and the
+    /// pixels' records it fills.
     pub fn frame<'a>(
-        &'a self,
+        &'a mut self,
         cfg: &'a TextureCacheConfig,
         settings: PathSettings,
         camera: &'a Camera,
-    ) -> CacheFrame<'a> {
-        CacheFrame {
-            cache: self,
+    ) -> (CacheFrame<'a>, &'a mut [CachePixel]) {
+        let frame = CacheFrame {
+            cache: &self.cache,
             grids: &self.grids.as_ref().expect("made above").2,
             sun: &self.sun,
             cfg,
@@ -792,12 +807,13 @@ impl TextureCache {
             },
             camera,
             seed: hash(&[settings.seed, 0x002]),
-        }
+        };
+        (frame, &mut self.pixels)
     }
 
     /// What the cache did this frame, and the thread time its lookups took (ms).
     pub fn report(&self) -> (CacheReport, f64) {
-        let c = &self.counters;
+        let c = &self.cache.counters;
         let load = |a: &AtomicU64| a.load(Ordering::Relaxed);
         (
             CacheReport {
@@ -810,7 +826,7 @@ impl TextureCache {
                     .iter()
                     .filter(|p| matches!(p.status, Status::Hit | Status::Miss | Status::Uncached))
                     .count() as u64,
-                bytes: (self.samples.bytes() + self.texels.bytes()) as u64,
+                bytes: (self.cache.samples.bytes() + self.cache.texels.bytes()) as u64,
             },
             load(&c.nanos) as f64 * 1e-6,
         )
@@ -819,10 +835,10 @@ impl TextureCache {
     /// Sample blocks shaded at the current frame, counted over the table (with no eviction,
     /// each block shaded once: equal to the report's `blocks_shaded`).
     pub fn blocks_at_current_frame(&self) -> usize {
-        (0..self.samples.slots())
+        (0..self.cache.samples.slots())
             .filter(|&i| {
-                self.samples.states[i].load(Ordering::Relaxed) & STATE == READY
-                    && self.samples.frames[i].load(Ordering::Relaxed) == self.frame
+                self.cache.samples.states[i].load(Ordering::Relaxed) & STATE == READY
+                    && self.cache.samples.frames[i].load(Ordering::Relaxed) == self.cache.frame
             })
             .count()
     }
@@ -847,9 +863,8 @@ impl CacheFrame<'_> {
         if spp == 0 {
             return (LightSample::default(), 0);
         }
-        let first = tracer.camera_sample(x, y, index);
+        let film_lens = tracer.film_lens(x, y, index);
         let albedo_rng = Rng::new(hash(&[self.seed, x as u64, y as u64]), index as u64);
-        let film_lens = (first.film, first.lens);
         // The first sample through the cache, or (it bypasses) the plain lighting's.
         let (mut stats, bounce, mut rays) =
             match self.sample(tracer, film_lens, hit, direct, albedo_rng, record) {
@@ -950,7 +965,7 @@ impl CacheFrame<'_> {
             self.cfg.lod == LodMeasure::Area,
         );
         let mut rays = s.rays as u64;
-        let mut light = [0.0f32; 6];
+        let mut light = [0.0f32; CHANNELS];
         let (status, key) = match self.cfg.interpolate && self.cfg.filter != CacheFilter::None {
             true => self.interpolated(
                 tracer,
@@ -1027,7 +1042,7 @@ impl CacheFrame<'_> {
         tracer: &PathTracer,
         cell: &Cell,
         bary: glam::Vec2,
-        out: &mut [f32; 6],
+        out: &mut [f32; CHANNELS],
         rays: &mut u64,
         shaded: &mut u32,
     ) -> (Status, u64) {
@@ -1036,7 +1051,7 @@ impl CacheFrame<'_> {
         let u = bary.clamp(glam::Vec2::ZERO, glam::Vec2::ONE) * r as f32 - 0.5;
         let base = u.floor();
         let f = u - base;
-        let (mut sum, mut total) = ([0.0f32; 6], 0.0f32);
+        let (mut sum, mut total) = ([0.0f32; CHANNELS], 0.0f32);
         let (mut status, mut key) = (Status::Hit, 0);
         for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
             let (i, j) = (base.x as i64 + dx, base.y as i64 + dy);
@@ -1053,7 +1068,7 @@ impl CacheFrame<'_> {
                 upper: false,
                 ..*cell
             };
-            let mut light = [0.0f32; 6];
+            let mut light = [0.0f32; CHANNELS];
             let (st, k) = self.lookup(tracer, &corner, &mut light, rays, shaded);
             for c in 0..ch {
                 sum[c] += w * light[c];
@@ -1074,7 +1089,7 @@ impl CacheFrame<'_> {
         }
         if key == 0 {
             let (block, k) = Block::of(cell, r);
-            key = hash(&[block.key(), k as u64]);
+            key = block.texel_key(k);
         }
         (status, key)
     }
@@ -1085,16 +1100,15 @@ impl CacheFrame<'_> {
         &self,
         tracer: &PathTracer,
         cell: &Cell,
-        out: &mut [f32; 6],
+        out: &mut [f32; CHANNELS],
         rays: &mut u64,
         shaded: &mut u32,
     ) -> (Status, u64) {
         let ch = self.cfg.channels();
         let (block, k) = Block::of(cell, self.grids.resolution(cell));
-        let bkey = block.key();
-        let key = hash(&[bkey, k as u64]);
+        let (bkey, key) = (block.key(), block.texel_key(k));
         if self.cfg.filter == CacheFilter::None {
-            let mut cells = [0.0f32; CELLS * 7];
+            let mut cells = [0.0f32; CELLS * (1 + CHANNELS)];
             let t = Instant::now();
             let status = self.sample_block(tracer, &block, &mut cells, rays, shaded);
             self.time(t);
@@ -1116,22 +1130,21 @@ impl CacheFrame<'_> {
                     }
                 }
                 Claim::Busy => std::thread::yield_now(),
-                Claim::Mine(i, _) => {
+                // Filtered here, into the slot claimed (or without the cache, its set full).
+                claim => {
                     let t = Instant::now();
-                    let mut texels = [0.0f32; SQUARES * 6];
-                    self.filter(tracer, &block, &mut texels[..SQUARES * ch], rays, shaded);
+                    let mut texels = [0.0f32; SQUARES * CHANNELS];
+                    let texels = &mut texels[..SQUARES * ch];
+                    self.filter(tracer, &block, texels, rays, shaded);
                     self.time(t);
-                    table.write(i, &texels[..SQUARES * ch]);
+                    out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
+                    let Claim::Mine(i, _) = claim else {
+                        return (Status::Uncached, key);
+                    };
+                    table.write(i, texels);
                     table.publish(i, bkey, frame);
                     self.cache.counters.texels.fetch_add(1, Ordering::Relaxed);
-                    out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
                     return (Status::Miss, key);
-                }
-                Claim::Full => {
-                    let mut texels = [0.0f32; SQUARES * 6];
-                    self.filter(tracer, &block, &mut texels[..SQUARES * ch], rays, shaded);
-                    out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
-                    return (Status::Uncached, key);
                 }
             }
         }
@@ -1147,29 +1160,42 @@ impl CacheFrame<'_> {
         rays: &mut u64,
         shaded: &mut u32,
     ) -> Status {
+        loop {
+            if let Some(status) = self.try_sample_block(tracer, block, out, rays, shaded) {
+                return status;
+            }
+            std::thread::yield_now();
+        }
+    }
+
+    /// As [`sample_block`](Self::sample_block) without waiting: `None` while another thread
+    /// shades the block (or replaced it as it was read).
+    fn try_sample_block(
+        &self,
+        tracer: &PathTracer,
+        block: &Block,
+        out: &mut [f32],
+        rays: &mut u64,
+        shaded: &mut u32,
+    ) -> Option<Status> {
         let table = &self.cache.samples;
         let frame = self.cache.frame;
-        let key = block.key();
-        let n = table.stride;
-        loop {
-            match table.claim(key, frame) {
-                Claim::Ready(i, s) => {
-                    table.read(i, &mut out[..n]);
-                    if table.still(i, s, frame) {
-                        return Status::Hit;
-                    }
-                }
-                Claim::Busy => std::thread::yield_now(),
-                Claim::Mine(i, fresh) => {
-                    self.shade_slot(tracer, block, i, fresh, &mut out[..n], rays, shaded);
-                    return Status::Miss;
-                }
-                Claim::Full => {
-                    out[..n].fill(0.0);
-                    self.shade(tracer, block, &mut out[..n], rays, shaded);
-                    self.cache.counters.uncached.fetch_add(1, Ordering::Relaxed);
-                    return Status::Uncached;
-                }
+        let out = &mut out[..table.stride];
+        match table.claim(block.key(), frame) {
+            Claim::Ready(i, s) => {
+                table.read(i, out);
+                table.still(i, s, frame).then_some(Status::Hit)
+            }
+            Claim::Busy => None,
+            Claim::Mine(i, fresh) => {
+                self.shade_slot(tracer, block, i, fresh, out, rays, shaded);
+                Some(Status::Miss)
+            }
+            Claim::Full => {
+                out.fill(0.0);
+                self.shade(tracer, block, out, rays, shaded);
+                self.cache.counters.uncached.fetch_add(1, Ordering::Relaxed);
+                Some(Status::Uncached)
             }
         }
     }
@@ -1275,7 +1301,7 @@ impl CacheFrame<'_> {
             let s = tracer.trace_lit::<false>(ray, Some(&vertex), sampler, rng, direct);
             *rays += s.rays as u64;
             cells += 1;
-            let mut v = [0.0f32; 6];
+            let mut v = [0.0f32; CHANNELS];
             v[ch - 3..ch].copy_from_slice(&s.indirect.to_array());
             if let Some(sky) = sky {
                 v[..3].copy_from_slice(&sky.to_array());
@@ -1331,7 +1357,7 @@ impl CacheFrame<'_> {
         let (mut grid, mut rows) = SCRATCH.with_borrow_mut(std::mem::take);
         grid.clear();
         grid.resize(w * w * (ch + 1), 0.0);
-        let mut cells = [0.0f32; CELLS * 7];
+        let mut cells = [0.0f32; CELLS * (1 + CHANNELS)];
         let mut deferred = Vec::new();
         // The block's own cells' mean sample count (the filter narrows as it grows).
         let mut centre = (0.0f32, 0u32);
@@ -1363,25 +1389,9 @@ impl CacheFrame<'_> {
                 let Some(b) = block.beside(dx, dy) else {
                     continue;
                 };
-                let table = &self.cache.samples;
-                match table.claim(b.key(), self.cache.frame) {
-                    Claim::Ready(i, s) => {
-                        table.read(i, &mut cells[..stride * CELLS]);
-                        match table.still(i, s, self.cache.frame) {
-                            true => gather(&b, &cells, &mut grid),
-                            false => deferred.push(b),
-                        }
-                    }
-                    Claim::Busy => deferred.push(b),
-                    Claim::Mine(i, fresh) => {
-                        let n = stride * CELLS;
-                        self.shade_slot(tracer, &b, i, fresh, &mut cells[..n], rays, shaded);
-                        gather(&b, &cells, &mut grid);
-                    }
-                    Claim::Full => {
-                        self.sample_block(tracer, &b, &mut cells, rays, shaded);
-                        gather(&b, &cells, &mut grid);
-                    }
+                match self.try_sample_block(tracer, &b, &mut cells, rays, shaded) {
+                    Some(_) => gather(&b, &cells, &mut grid),
+                    None => deferred.push(b),
                 }
             }
         }
@@ -1414,7 +1424,7 @@ impl CacheFrame<'_> {
         }
         for sy in 0..BLOCK as usize {
             for sx in 0..BLOCK as usize {
-                let mut acc = [0.0f32; 7];
+                let mut acc = [0.0f32; 1 + CHANNELS];
                 for (t, &wt) in weights.iter().enumerate() {
                     let y = (lo + sy) as i32 + t as i32 - radius;
                     if y < 0 || y >= w as i32 {
@@ -1523,8 +1533,8 @@ impl Stage for TextureCache {
     }
 
     fn bytes(&self) -> usize {
-        self.samples.bytes()
-            + self.texels.bytes()
+        self.cache.samples.bytes()
+            + self.cache.texels.bytes()
             + self.pixels.capacity() * std::mem::size_of::<CachePixel>()
             + self.grids.as_ref().map_or(0, |g| g.2.bytes())
     }

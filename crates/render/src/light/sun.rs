@@ -12,7 +12,9 @@
 
 use glam::{Vec2, Vec3};
 
-use super::{distribution_pdf, environment_weights, weight, LightSample, Lights};
+use super::{
+    distribution_pdf, environment_weights, texel_solid_angle, weight, LightSample, Lights,
+};
 use crate::distribution::Distribution2D;
 
 /// A texel belongs to the sun if its luminance is at least this fraction of the brightest's.
@@ -52,29 +54,26 @@ impl SunAndSky {
             .map(|&t| weight(t * env.intensity))
             .collect();
         let brightest = lum.iter().copied().fold(0.0f32, f32::max);
-        let threshold = SUN_FRACTION * brightest;
-        let (w, h) = (env.width as usize, env.height.max(1) as usize);
-        let row_solid_angle = |y: usize| {
-            let (t0, t1) = (
-                std::f32::consts::PI * y as f32 / h as f32,
-                std::f32::consts::PI * (y + 1) as f32 / h as f32,
-            );
-            (2.0 * std::f32::consts::PI / w as f32) * (t0.cos() - t1.cos())
-        };
-        let in_sun = |i: usize| brightest > 0.0 && lum[i] >= threshold;
+        let (w, h) = (env.width as usize, env.height as usize);
+        // The texels bright enough, if they are few enough to be a sun.
+        let mut sun: Vec<bool> = lum
+            .iter()
+            .map(|&l| brightest > 0.0 && l >= SUN_FRACTION * brightest)
+            .collect();
         let solid_angle: f32 = (0..lum.len())
-            .filter(|&i| in_sun(i))
-            .map(|i| row_solid_angle(i / w.max(1)))
+            .filter(|&i| sun[i])
+            .map(|i| texel_solid_angle(i / w.max(1), w, h))
             .sum();
-        let has_sun = brightest > 0.0 && solid_angle <= MAX_SUN_SOLID_ANGLE;
-        let is_sun = |i: usize| has_sun && in_sun(i);
-        let (sun_weights, rows, sun_power) = environment_weights(env, is_sun);
-        let (sky_weights, _, sky_power) = environment_weights(env, |i| !is_sun(i));
+        if solid_angle > MAX_SUN_SOLID_ANGLE {
+            sun.fill(false);
+        }
+        let (sun_weights, rows, sun_power) = environment_weights(env, |i| sun[i]);
+        let (sky_weights, _, sky_power) = environment_weights(env, |i| !sun[i]);
         let total = sun_power + sky_power;
         Self {
             sun: Distribution2D::new(&sun_weights, w, rows),
             sky: Distribution2D::new(&sky_weights, w, rows),
-            sun_texels: (0..lum.len()).filter(|&i| is_sun(i)).count(),
+            sun_texels: sun.iter().filter(|&&s| s).count(),
             sun_share: if total > 0.0 {
                 (sun_power / total) as f32
             } else {
