@@ -176,6 +176,10 @@ pub struct FilterConfig {
     /// last stage): along every orbit measured 15-45% less CIELUV error and 2.4-5x less
     /// flicker, for 3-5 ms at 640x360.
     pub svgf_taa: bool,
+    /// Temporal antialiasing (SVGF's last stage, and `method = "taa"`): this frame's weight in
+    /// the blend with the clamped history (0.3, chosen for SVGF's output; higher trails less
+    /// behind a moving camera and smooths less).
+    pub taa_alpha: f32,
     /// SVGF: converge while the camera is still (not in the paper): a pixel whose motion
     /// vector is 0 takes each frame into a plain mean of its history instead of at a weight of
     /// 0.2, and its luminance test narrows with the mean's noise, so a still view converges
@@ -284,6 +288,7 @@ impl Default for FilterConfig {
             svgf_split: true,
             svgf_normal_width: 16.0,
             svgf_taa: true,
+            taa_alpha: crate::taa::ALPHA,
             svgf_converge: true,
             svgf_still_handover: 0,
             sigma_direct: 1.25,
@@ -351,6 +356,9 @@ impl FilterConfig {
             if !(v.is_finite() && v > 0.0) {
                 return FilterError::parameter(field, v, "a positive number");
             }
+        }
+        if !(self.taa_alpha > 0.0 && self.taa_alpha <= 1.0) {
+            return FilterError::parameter("frame.filter.taa_alpha", self.taa_alpha, "in (0, 1]");
         }
         if !(self.sigma_normal_lobe.is_finite() && self.sigma_normal_lobe >= 0.0) {
             return FilterError::parameter(
@@ -422,6 +430,7 @@ impl FilterConfig {
             split: self.svgf_split,
             normal_width: self.svgf_normal_width,
             taa: self.svgf_taa,
+            taa_alpha: self.taa_alpha,
             converge: self.svgf_converge,
         }
     }

@@ -122,6 +122,8 @@ pub struct SvgfParams {
     /// Temporal antialiasing of the output ([`crate::taa`]), as the paper applies after the
     /// filter.
     pub taa: bool,
+    /// This frame's weight in the temporal antialiasing's blend ([`crate::taa::Taa::set_alpha`]).
+    pub taa_alpha: f32,
     /// Converge while the camera is still (not in the paper): a pixel that has not moved
     /// (its motion vector 0) blends its history as a plain mean of the frames it has seen
     /// instead of at `alpha = 0.2`, and its luminance test narrows as the mean's noise falls
@@ -166,6 +168,7 @@ impl Default for SvgfParams {
             split: true,
             normal_width: 16.0,
             taa: false,
+            taa_alpha: crate::taa::ALPHA,
             converge: false,
         }
     }
@@ -254,6 +257,7 @@ impl Svgf {
             split,
             normal_width,
             taa,
+            taa_alpha,
             converge,
         } = *p;
         p.validate()?;
@@ -379,6 +383,7 @@ impl Svgf {
                 .for_each(|(i, o)| *o = remodulate(f, i, self.light[i][0] + self.light[i][1]));
         }
         if taa {
+            self.taa.set_alpha(taa_alpha);
             self.taa.apply(out, f.motion, f.width, f.height);
         } else {
             self.taa.reset();

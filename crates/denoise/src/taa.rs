@@ -50,7 +50,7 @@ fn pitch(width: usize) -> usize {
 
 /// The weight of this frame's value in the blend (chosen on the orbits of the Cornell box and
 /// the garden among 0.1, 0.2 and 0.3, BENCHMARKS.md).
-const ALPHA: f32 = 0.3;
+pub const ALPHA: f32 = 0.3;
 /// The history is clamped to the neighbourhood's mean plus and minus `GAMMA` standard
 /// deviations (chosen among 0.35, 0.5, 0.75 and 1).
 const GAMMA: f32 = 0.5;
@@ -74,12 +74,20 @@ pub struct Taa {
     scalar: bool,
     /// The widest lanes the blend uses (narrower ones for tests).
     isa: Isa,
+    /// This frame's weight in the blend, if not [`ALPHA`].
+    alpha: Option<f32>,
 }
 
 impl Taa {
     /// Forgets the history (the next frame is kept as it is).
     pub fn reset(&mut self) {
         self.history.clear();
+    }
+
+    /// This frame's weight in the blend, in (0, 1] (the default, 0.3, was chosen for SVGF's
+    /// output: a higher weight trails less behind a moving camera and smooths less).
+    pub fn set_alpha(&mut self, alpha: f32) {
+        self.alpha = Some(alpha);
     }
 
     /// Blends in scalar code instead of lanes (the same arithmetic; for tests).
@@ -153,6 +161,7 @@ impl Taa {
         // (In lanes the pixels' indices are `f32`s, exact below 2^24.)
         let (lanes, isa) = (!self.scalar && n < 1 << 24, self.isa);
         let size = (width, height);
+        let alpha = self.alpha.unwrap_or(ALPHA);
         // Each row's output in place of its input (a pixel reads only its own value; its
         // neighbourhood is in `rows`), and kept for the next frame.
         image
@@ -168,6 +177,7 @@ impl Taa {
                         pitch,
                         size,
                         y,
+                        alpha,
                         out,
                     };
                     dispatch(isa, ByGroups(b));
@@ -179,7 +189,14 @@ impl Taa {
                                 *s += rows[(qy * SUMS + k) * pitch + x];
                             }
                         }
-                        *out = pixel(*out, &sums, history, motion[y * width + x], size, (x, y));
+                        *out = pixel(
+                            *out,
+                            &sums,
+                            history,
+                            motion[y * width + x],
+                            (size, alpha),
+                            (x, y),
+                        );
                     }
                 }
                 keep_row(out, kept);
@@ -199,13 +216,14 @@ fn keep_row(row: &[Vec3], planes: &mut [f32]) {
 }
 
 /// The output of pixel `at` of an image of `size`, whose value is `c` and whose 3x3 neighbourhood's sums are
-/// `sums` (the values compressed and in YCoCg, their squares, the count).
+/// `sums` (the values compressed and in YCoCg, their squares, the count), blended with weight
+/// `alpha`.
 fn pixel(
     c: Vec3,
     sums: &[f32; 7],
     history: &[f32],
     motion: Vec2,
-    size: (usize, usize),
+    (size, alpha): ((usize, usize), f32),
     at: (usize, usize),
 ) -> Vec3 {
     if !c.is_finite() {
@@ -225,7 +243,7 @@ fn pixel(
     let (low, high) = (mean - GAMMA * sigma, mean + GAMMA * sigma);
     let clamped = ycocg(compress(h)).clamp(low.min(c), high.max(c));
     // (A box's corner in YCoCg may lie a little outside the RGB cube.)
-    expand(rgb(clamped + (c - clamped) * ALPHA).max(Vec3::ZERO))
+    expand(rgb(clamped + (c - clamped) * alpha).max(Vec3::ZERO))
 }
 
 /// Light compressed into [0, 1) by its luminance, `c / (1 + Y)`, in which the box and the
@@ -250,6 +268,7 @@ struct Blend<'a> {
     pitch: usize,
     size: (usize, usize),
     y: usize,
+    alpha: f32,
     out: &'a mut [Vec3],
 }
 
@@ -330,7 +349,7 @@ impl Groups for Blend<'_> {
             let sigma = max(square - mean * mean, zero).sqrt();
             let (low, high) = (mean - splat(GAMMA) * sigma, mean + splat(GAMMA) * sigma);
             let clamped = min(max(past[k], min(low, now[k])), max(high, now[k]));
-            blend[k] = clamped + (now[k] - clamped) * splat(ALPHA);
+            blend[k] = clamped + (now[k] - clamped) * splat(self.alpha);
         }
         let out = rgb_lanes(blend);
         let out = expand_lanes([max(out[0], zero), max(out[1], zero), max(out[2], zero)]);

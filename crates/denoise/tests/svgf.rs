@@ -522,6 +522,7 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
             split,
             normal_width,
             taa: false,
+            taa_alpha: 0.3,
             converge,
         };
         let (mut fast, mut slow) = (Svgf::new(), Svgf::new());

@@ -60,6 +60,10 @@ pub struct Spec {
     /// Which views along the path are measured.
     #[serde(default = "final_view")]
     pub measure: Measure,
+    /// With `measure = "every"`: the first view measured (the views before it are rendered,
+    /// the history they build kept, but not measured: they need no reference).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub measure_from: usize,
     pub budget: Budget,
     #[serde(default)]
     pub reference: ReferenceSpec,
@@ -107,6 +111,10 @@ fn one_u32() -> u32 {
 }
 fn default_metrics() -> Vec<Metric> {
     vec![Metric::Mse, Metric::Relmse]
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 fn final_view() -> Measure {
@@ -441,7 +449,7 @@ impl Spec {
     pub fn measured_views(&self, count: usize) -> Vec<usize> {
         match self.measure {
             Measure::Final => vec![count - 1],
-            Measure::Every => (0..count).collect(),
+            Measure::Every => (self.measure_from.min(count - 1)..count).collect(),
         }
     }
 }
@@ -577,6 +585,12 @@ mod tests {
         assert_eq!(s.views(&cam, Vec3::ZERO).len(), 3);
         assert_eq!(s.camera.frames_per_view, 4);
         assert_eq!(s.measured_views(3), vec![0, 1, 2]);
+        let s = Spec::parse(&format!(
+            "measure = \"every\"\nmeasure_from = 2\n{MINIMAL}\n[camera]\npath = \"rotation\"\ndegrees = 30\nstep_degrees = 10\n"
+        ))
+        .unwrap();
+        assert_eq!(s.measured_views(4), vec![2, 3]);
+        assert_eq!(s.measured_views(2), vec![1]);
         let s = Spec::parse(MINIMAL).unwrap();
         assert_eq!(s.measured_views(3), vec![2]);
     }

@@ -433,6 +433,7 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 ui.selectable_value(&mut t.filter, CacheFilter::None, "none");
                 ui.selectable_value(&mut t.filter, CacheFilter::Box, "box");
                 ui.selectable_value(&mut t.filter, CacheFilter::Gaussian, "Gaussian");
+                ui.selectable_value(&mut t.filter, CacheFilter::Linear, "linear");
             });
         let mut k = t.kernel;
         ui.add(egui::Slider::new(&mut k, 1..=MAX_KERNEL).text("filter window"));
@@ -480,6 +481,13 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             ui.selectable_value(&mut f.method, Method::Svgf, "svgf (spatio-temporal)");
             ui.selectable_value(&mut f.method, Method::Taa, "taa (antialiasing)");
         });
+    ui.add_enabled_ui(
+        f.method == Method::Taa || (f.method == Method::Svgf && f.svgf_taa),
+        |ui| {
+            ui.add(egui::Slider::new(&mut f.taa_alpha, 0.05..=1.0).text("antialiasing weight"))
+                .on_hover_text("This frame's weight in the temporal antialiasing's blend");
+        },
+    );
     ui.add_enabled_ui(f.method == Method::Svgf, |ui| {
         ui.add(egui::Slider::new(&mut f.atrous_iterations, 1..=8).text("a-trous iterations"));
         ui.horizontal(|ui| {

@@ -77,7 +77,13 @@
 //! less and less); `"exponential"`: Eq. 6, `c = (1 - alpha) c_new + alpha c_old` with `alpha =
 //! temporal_alpha`; `"none"`: each frame's sample alone. The filter (box or Gaussian over a
 //! `kernel`-wide window of squares) narrows as `n^-shrink` as the cells gather samples (the
-//! paper notes its fixed kernels are not consistent).
+//! paper notes its fixed kernels are not consistent). `filter = "linear"`: a linear
+//! regression over the window's squares' places, weighted by the Gaussian, read at the
+//! texel's own place (the paper's regression in texture space over the place alone, one
+//! window instead of a choice among several; its slopes damped by [`RIDGE`]): a gradient's
+//! texels, and those whose window a triangle's edge cuts short, are no longer pulled toward
+//! the side with more squares (along the interior's orbit the crease pixels' error fell by
+//! a tenth; BENCHMARKS.md).
 //!
 //! Departures from the paper: per-triangle grids instead of Ptex faces; the filter stays
 //! inside its triangle (its window is clipped and renormalised at the triangle's edges) and so
@@ -140,6 +146,10 @@ pub enum CacheFilter {
     Box,
     /// A Gaussian over the window, standard deviation a quarter of its width.
     Gaussian,
+    /// A linear regression over the squares' places, weighted by the Gaussian: a gradient's
+    /// texels unbiased to first order, at the window's edges too (seed 002's regression in
+    /// texture space, over the place alone).
+    Linear,
 }
 
 /// Which light the cache holds.
@@ -678,8 +688,14 @@ struct Caches {
     texels: Table,
     /// Frames the cache has served (its slots' frame stamps; 0: never).
     frame: u32,
+    /// This frame's number among every cache's frames in the process (the threads' recent
+    /// texel blocks, [`RECENT`], are this frame's if they carry it).
+    serial: u64,
     counters: Counters,
 }
+
+/// Frames served by every cache of the process ([`Caches::serial`]).
+static SERIALS: AtomicU64 = AtomicU64::new(1);
 
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
 #[derive(Default)]
@@ -779,6 +795,7 @@ impl TextureCache {
         if !std::mem::take(&mut self.same_instant) || self.cache.frame == 0 {
             self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
         }
+        self.cache.serial = SERIALS.fetch_add(1, Ordering::Relaxed);
         self.cache.counters = Counters::default();
         self.pixels.clear();
         self.pixels.resize(pixels, CachePixel::default());
@@ -945,18 +962,32 @@ impl CacheFrame<'_> {
         }
         // The pixel's own terms: emission, and next event estimation (or the reservoir's)
         // unless the cache holds the direct light.
-        let own = PathTracer {
-            world,
-            camera: tracer.camera,
-            settings: self.short,
+        let s = match self.short.max_bounces {
+            // Emission alone (the path tracer's first vertex at a bounce limit of 0, without
+            // building its BSDF again).
+            Some(0) => crate::path::PathSample {
+                direct: world.lights.emitted(
+                    &world.scene,
+                    v.surface.instance,
+                    v.surface.triangle,
+                    v.surface.bary,
+                    -hit.ray.direction,
+                ),
+                ..Default::default()
+            },
+            _ => PathTracer {
+                world,
+                camera: tracer.camera,
+                settings: self.short,
+            }
+            .trace_lit::<false>(
+                hit.ray,
+                Some(v),
+                hit.sampler.clone(),
+                hit.rng.clone(),
+                direct,
+            ),
         };
-        let s = own.trace_lit::<false>(
-            hit.ray,
-            Some(v),
-            hit.sampler.clone(),
-            hit.rng.clone(),
-            direct,
-        );
         let footprint = Footprint::at(world, &self.camera.ray(film, lens), &v.surface);
         let cell = self.grids.cell(
             &v.surface,
@@ -1052,7 +1083,11 @@ impl CacheFrame<'_> {
         let base = u.floor();
         let f = u - base;
         let (mut sum, mut total) = ([0.0f32; CHANNELS], 0.0f32);
-        let (mut status, mut key) = (Status::Hit, 0);
+        let mut status = Status::Hit;
+        // The blocks read so far (the four squares lie in one to four of them), each read once.
+        let mut blocks: [(Block, [f32; SQUARES * CHANNELS]); 4] =
+            [(Block::of(cell, r).0, [0.0; SQUARES * CHANNELS]); 4];
+        let mut read = 0;
         for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
             let (i, j) = (base.x as i64 + dx, base.y as i64 + dy);
             if i < 0 || j < 0 || i + j >= r as i64 {
@@ -1068,18 +1103,24 @@ impl CacheFrame<'_> {
                 upper: false,
                 ..*cell
             };
-            let mut light = [0.0f32; CHANNELS];
-            let (st, k) = self.lookup(tracer, &corner, &mut light, rays, shaded);
+            let (block, k) = Block::of(&corner, r);
+            let b = match blocks[..read].iter().position(|(b, _)| *b == block) {
+                Some(b) => b,
+                None => {
+                    blocks[read].0 = block;
+                    let st = self.texel_block(tracer, &block, &mut blocks[read].1, rays, shaded);
+                    if st != Status::Hit {
+                        status = st;
+                    }
+                    read += 1;
+                    read - 1
+                }
+            };
+            let light = &blocks[b].1[k / 2 * ch..][..ch];
             for c in 0..ch {
                 sum[c] += w * light[c];
             }
             total += w;
-            if st != Status::Hit {
-                status = st;
-            }
-            if corner.square == cell.square {
-                key = k;
-            }
         }
         if total <= 0.0 {
             return self.lookup(tracer, cell, out, rays, shaded);
@@ -1087,11 +1128,15 @@ impl CacheFrame<'_> {
         for c in 0..ch {
             out[c] = sum[c] / total;
         }
-        if key == 0 {
-            let (block, k) = Block::of(cell, r);
-            key = block.texel_key(k);
-        }
-        (status, key)
+        // (The square's key: both halves share its texel.)
+        let (block, k) = Block::of(
+            &Cell {
+                upper: false,
+                ..*cell
+            },
+            r,
+        );
+        (status, block.texel_key(k))
     }
 
     /// The light of `cell` into `out` (its channels): its texel, filtered this frame, or with
@@ -1106,7 +1151,7 @@ impl CacheFrame<'_> {
     ) -> (Status, u64) {
         let ch = self.cfg.channels();
         let (block, k) = Block::of(cell, self.grids.resolution(cell));
-        let (bkey, key) = (block.key(), block.texel_key(k));
+        let key = block.texel_key(k);
         if self.cfg.filter == CacheFilter::None {
             let mut cells = [0.0f32; CELLS * (1 + CHANNELS)];
             let t = Instant::now();
@@ -1117,37 +1162,54 @@ impl CacheFrame<'_> {
             return (status, key);
         }
         let square = k / 2;
+        let mut texels = [0.0f32; SQUARES * CHANNELS];
+        let status = self.texel_block(tracer, &block, &mut texels, rays, shaded);
+        out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
+        (status, key)
+    }
+
+    /// The filtered texels of `block`'s squares into `out` (channels per square): found
+    /// filtered this frame, or filtered here (into the slot claimed, or without the cache when
+    /// its set is full).
+    fn texel_block(
+        &self,
+        tracer: &PathTracer,
+        block: &Block,
+        out: &mut [f32; SQUARES * CHANNELS],
+        rays: &mut u64,
+        shaded: &mut u32,
+    ) -> Status {
+        let (bkey, frame, serial) = (block.key(), self.cache.frame, self.cache.serial);
+        if RECENT.with_borrow(|r| r.find(serial, bkey, out)) {
+            return Status::Hit;
+        }
+        let texels = &mut out[..SQUARES * self.cfg.channels()];
         let table = &self.cache.texels;
-        let frame = self.cache.frame;
-        loop {
+        let status = loop {
             match table.claim(bkey, frame) {
                 Claim::Ready(i, s) => {
-                    for (c, o) in out[..ch].iter_mut().enumerate() {
-                        *o = table.word(i, square * ch + c);
-                    }
+                    table.read(i, texels);
                     if table.still(i, s, frame) {
-                        return (Status::Hit, key);
+                        break Status::Hit;
                     }
                 }
                 Claim::Busy => std::thread::yield_now(),
-                // Filtered here, into the slot claimed (or without the cache, its set full).
                 claim => {
                     let t = Instant::now();
-                    let mut texels = [0.0f32; SQUARES * CHANNELS];
-                    let texels = &mut texels[..SQUARES * ch];
-                    self.filter(tracer, &block, texels, rays, shaded);
+                    self.filter(tracer, block, texels, rays, shaded);
                     self.time(t);
-                    out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
                     let Claim::Mine(i, _) = claim else {
-                        return (Status::Uncached, key);
+                        break Status::Uncached;
                     };
                     table.write(i, texels);
                     table.publish(i, bkey, frame);
                     self.cache.counters.texels.fetch_add(1, Ordering::Relaxed);
-                    return (Status::Miss, key);
+                    break Status::Miss;
                 }
             }
-        }
+        };
+        RECENT.with_borrow_mut(|r| r.keep(serial, bkey, out));
+        status
     }
 
     /// Sample block `block` shaded this frame, its cells' data (count, channels) into `out`:
@@ -1403,50 +1465,156 @@ impl CacheFrame<'_> {
         let mut weights = [0.0f32; MAX_KERNEL as usize];
         let weights = &mut weights[..self.cfg.kernel as usize];
         self.weights(centre.0 / centre.1.max(1) as f32, weights);
-        // Separable: along x over the rows the block's squares need, then along y.
         let lo = reach as usize * BLOCK as usize;
-        rows.clear();
-        rows.resize(w * BLOCK as usize * (ch + 1), 0.0);
-        for y in 0..w {
-            for x in 0..BLOCK as usize {
-                let o = &mut rows[(y * BLOCK as usize + x) * (ch + 1)..][..ch + 1];
-                for (t, &wt) in weights.iter().enumerate() {
-                    let sx = (lo + x) as i32 + t as i32 - radius;
-                    if sx < 0 || sx >= w as i32 {
-                        continue;
-                    }
-                    let g = &grid[(y * w + sx as usize) * (ch + 1)..][..ch + 1];
-                    for c in 0..=ch {
-                        o[c] += wt * g[c];
-                    }
-                }
-            }
-        }
-        for sy in 0..BLOCK as usize {
-            for sx in 0..BLOCK as usize {
-                let mut acc = [0.0f32; 1 + CHANNELS];
-                for (t, &wt) in weights.iter().enumerate() {
-                    let y = (lo + sy) as i32 + t as i32 - radius;
-                    if y < 0 || y >= w as i32 {
-                        continue;
-                    }
-                    let r = &rows[(y as usize * BLOCK as usize + sx) * (ch + 1)..][..ch + 1];
-                    for c in 0..=ch {
-                        acc[c] += wt * r[c];
-                    }
-                }
-                let o = &mut out[(sy * BLOCK as usize + sx) * ch..][..ch];
-                let norm = if acc[ch] > 0.0 { 1.0 / acc[ch] } else { 0.0 };
-                for c in 0..ch {
-                    o[c] = acc[c] * norm;
-                }
-            }
-        }
+        let order = match self.cfg.filter {
+            CacheFilter::Linear => 2,
+            _ => 0,
+        };
+        convolve(&grid, w, lo, weights, ch, order, &mut rows, out);
         SCRATCH.with_borrow_mut(|s| *s = (grid, rows));
     }
 }
 
+/// The filter's window applied to `grid` (`w` x `w` squares, each its channels' sums and its
+/// weight: `ch + 1` values) at the block's squares (`lo` squares from the grid's corner), into
+/// `out` (`ch` values per square), separably: along x over the rows the block's squares need
+/// (into `rows`), then along y. `order` 0: the window's weighted mean; 2: a weighted linear
+/// regression over the squares' places, read at the square's own (the window's first and
+/// second moments along each axis: a gradient across the window, or the window cut short by
+/// its triangle's edge, no longer biases the texel toward the side that has more squares).
+#[allow(clippy::too_many_arguments)]
+fn convolve(
+    grid: &[f32],
+    w: usize,
+    lo: usize,
+    weights: &[f32],
+    ch: usize,
+    order: usize,
+    rows: &mut Vec<f32>,
+    out: &mut [f32],
+) {
+    let b = BLOCK as usize;
+    let radius = (weights.len() / 2) as i32;
+    let g1 = ch + 1;
+    // Per row and square: sum over x of weight * d^p * value, p = 0..=order.
+    let record = (order + 1) * g1;
+    rows.clear();
+    rows.resize(w * b * record, 0.0);
+    for y in 0..w {
+        for x in 0..b {
+            let o = &mut rows[(y * b + x) * record..][..record];
+            for (t, &wt) in weights.iter().enumerate() {
+                let sx = (lo + x) as i32 + t as i32 - radius;
+                if sx < 0 || sx >= w as i32 {
+                    continue;
+                }
+                let g = &grid[(y * w + sx as usize) * g1..][..g1];
+                let d = (t as i32 - radius) as f32;
+                let mut wd = wt;
+                for p in 0..=order {
+                    for c in 0..g1 {
+                        o[p * g1 + c] += wd * g[c];
+                    }
+                    wd *= d;
+                }
+            }
+        }
+    }
+    for sy in 0..b {
+        for sx in 0..b {
+            // m[q][p]: sum of weight * dx^p * dy^q * value, p + q <= order.
+            let mut m = [[[0.0f32; 1 + CHANNELS]; 3]; 3];
+            for (t, &wt) in weights.iter().enumerate() {
+                let y = (lo + sy) as i32 + t as i32 - radius;
+                if y < 0 || y >= w as i32 {
+                    continue;
+                }
+                let r = &rows[(y as usize * b + sx) * record..][..record];
+                let e = (t as i32 - radius) as f32;
+                let mut we = wt;
+                for (q, mq) in m.iter_mut().enumerate().take(order + 1) {
+                    for (p, mp) in mq.iter_mut().enumerate().take(order + 1 - q) {
+                        for (v, x) in mp.iter_mut().zip(&r[p * g1..(p + 1) * g1]) {
+                            *v += we * x;
+                        }
+                    }
+                    we *= e;
+                }
+            }
+            let o = &mut out[(sy * b + sx) * ch..][..ch];
+            let n = m[0][0][ch];
+            if n <= 0.0 {
+                o.fill(0.0);
+                continue;
+            }
+            // The linear model's intercept by the first row of the normal equations' inverse
+            // (cofactors), the slopes damped (ridge) so that a window of few squares, or of
+            // squares along a line, falls back toward the mean.
+            let solve = |m: &[[[f32; 1 + CHANNELS]; 3]; 3]| {
+                let (a, bb, cc) = (n, m[0][1][ch], m[1][0][ch]);
+                let (d, e, f) = (
+                    m[0][2][ch] + RIDGE * n,
+                    m[1][1][ch],
+                    m[2][0][ch] + RIDGE * n,
+                );
+                let (c0, c1, c2) = (d * f - e * e, cc * e - bb * f, bb * e - cc * d);
+                let det = a * c0 + bb * c1 + cc * c2;
+                (det > 1e-6 * a * d * f).then(|| [c0 / det, c1 / det, c2 / det])
+            };
+            match (order, solve(&m)) {
+                (2, Some(k)) => {
+                    for c in 0..ch {
+                        o[c] = (k[0] * m[0][0][c] + k[1] * m[0][1][c] + k[2] * m[1][0][c]).max(0.0);
+                    }
+                }
+                _ => {
+                    let norm = 1.0 / n;
+                    for c in 0..ch {
+                        o[c] = m[0][0][c] * norm;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The linear regression's damping of its slopes: added to the window's second moments, in
+/// squares squared times its weight.
+const RIDGE: f32 = 0.25;
+
+/// Texel blocks a thread read last (a pixel's four texels and its neighbours' lie in a few
+/// blocks): found here, a block is not looked up in the table again. Its texels are those the
+/// table holds for the frame (a block is filtered once a frame when nothing is evicted).
+#[derive(Default)]
+struct Recent {
+    /// (the frame's serial, the block's key, its texels), the oldest replaced first.
+    blocks: [(u64, u64, [f32; SQUARES * CHANNELS]); RECENT_BLOCKS],
+    next: usize,
+}
+
+/// Blocks in [`Recent`].
+const RECENT_BLOCKS: usize = 8;
+
+impl Recent {
+    /// Block `key` of frame `serial` into `out`, if kept.
+    fn find(&self, serial: u64, key: u64, out: &mut [f32; SQUARES * CHANNELS]) -> bool {
+        let found = self.blocks.iter().find(|b| b.0 == serial && b.1 == key);
+        if let Some(b) = found {
+            *out = b.2;
+        }
+        found.is_some()
+    }
+
+    fn keep(&mut self, serial: u64, key: u64, texels: &[f32; SQUARES * CHANNELS]) {
+        self.blocks[self.next] = (serial, key, *texels);
+        self.next = (self.next + 1) % RECENT_BLOCKS;
+    }
+}
+
 thread_local! {
+    /// Per thread: the texel blocks it read last.
+    static RECENT: std::cell::RefCell<Recent> = std::cell::RefCell::new(Recent::default());
+
     /// The filter's scratch, per thread: the window's squares, and its rows filtered along x.
     static SCRATCH: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
         const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
@@ -1481,7 +1649,9 @@ impl CacheFrame<'_> {
         let reach = radius as f32 * narrow + 0.5;
         for (o, d) in out.iter_mut().zip(-radius..=radius) {
             *o = match self.cfg.filter {
-                CacheFilter::Gaussian => (-(d * d) as f32 / (2.0 * sigma * sigma)).exp(),
+                CacheFilter::Gaussian | CacheFilter::Linear => {
+                    (-(d * d) as f32 / (2.0 * sigma * sigma)).exp()
+                }
                 _ => f32::from((d.abs() as f32) < reach.max(1.0)),
             };
         }
@@ -1560,6 +1730,58 @@ mod tests {
                 _ => panic!("{k:x} not claimed"),
             })
             .collect()
+    }
+
+    /// The window's filters on a grid of squares holding a linear ramp (one channel, each
+    /// square weight 1 or, past a triangle's edge, empty): the weighted mean is the ramp's
+    /// value where the window is whole and biased where an edge cuts it (toward the side that
+    /// has squares); the linear regression gives the ramp's value exactly in both.
+    #[test]
+    fn the_regression_follows_a_gradient_to_the_window_s_edge() {
+        let (w, lo, ch) = (10usize, 4usize, 1usize);
+        let ramp = |x: usize, y: usize| 1.0 + 0.25 * x as f32 + 0.125 * y as f32;
+        let weights: Vec<f32> = (-3i32..=3)
+            .map(|d| (-(d * d) as f32 / (2.0 * 1.75f32.powi(2))).exp())
+            .collect();
+        // Whole, then cut: no squares left of column 4 (the block's left squares on the edge).
+        for cut in [0usize, lo] {
+            let mut grid = vec![0.0f32; w * w * (ch + 1)];
+            for y in 0..w {
+                for x in cut..w {
+                    grid[(y * w + x) * 2] = ramp(x, y);
+                    grid[(y * w + x) * 2 + 1] = 1.0;
+                }
+            }
+            let mut rows = Vec::new();
+            let (mut mean, mut linear) = ([0.0f32; SQUARES], [0.0f32; SQUARES]);
+            convolve(&grid, w, lo, &weights, ch, 0, &mut rows, &mut mean);
+            convolve(&grid, w, lo, &weights, ch, 2, &mut rows, &mut linear);
+            for s in 0..SQUARES {
+                let exact = ramp(lo + s % 2, lo + s / 2);
+                let (bias, error) = ((mean[s] - exact).abs(), (linear[s] - exact).abs());
+                if cut == 0 {
+                    assert!(bias < 1e-4 * exact, "whole window, square {s}: {}", mean[s]);
+                    assert!(
+                        error < 1e-4 * exact,
+                        "whole window, square {s}: {}",
+                        linear[s]
+                    );
+                } else if s % 2 == 0 {
+                    // (The regression's slopes are damped a little: not exact at the edge.)
+                    assert!(
+                        bias > 0.05 * exact,
+                        "cut, square {s}: {} (no bias)",
+                        mean[s]
+                    );
+                    assert!(
+                        error < bias / 4.0,
+                        "cut, square {s}: {} against {exact} (the mean's {})",
+                        linear[s],
+                        mean[s]
+                    );
+                }
+            }
+        }
     }
 
     /// Colliding keys are told apart by their tags: each reads its own data; at the next
