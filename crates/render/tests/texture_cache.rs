@@ -401,3 +401,62 @@ fn the_cache_views_show_the_cache() {
         );
     }
 }
+
+/// With `edge_spp`, a pixel whose first hit and a neighbour's lie on different surfaces takes
+/// that many camera samples, every other pixel one (read here from the G-buffer's views: a
+/// neighbour at a normal's cosine under 0.8 or a fifth nearer or further is on another
+/// surface; all four on one plane, the same normal within a depth of a fifth, are not); the
+/// frame's sample count adds up, and such pixels are a minority of the Cornell box's.
+#[test]
+fn pixels_on_edges_take_more_samples() {
+    use pathlight_render::frame::display::DisplayMode;
+    let world = cornell();
+    let (w, h) = (48usize, 48usize);
+    let mut cfg = cached(
+        &config(w as u32, h as u32, 1),
+        CacheFilter::Gaussian,
+        CachedTerms::Sky,
+    );
+    cfg.frame.texture_cache.edge_spp = 4;
+    cfg.validate().unwrap();
+    let mut p = Pipeline::new(cfg);
+    let report = p.render_frame(&world);
+    let view = |name: &'static str, i: usize| p.value(&DisplayMode::named(name), i);
+    let (mut edges, mut clear, mut flat) = (0, 0, 0);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let (d, n) = (view("depth", i).x, view("normal", i));
+            let around =
+                [i - 1, i + 1, i - w, i + w].map(|j| (view("depth", j).x, view("normal", j)));
+            let apart =
+                |&(dj, nj): &(f32, glam::Vec3)| n.dot(nj) < 0.8 || dj > 1.2 * d || d > 1.2 * dj;
+            let samples = view("samples", i).x;
+            if around.iter().any(apart) {
+                assert_eq!(samples, 4.0, "pixel ({x}, {y}) is on an edge");
+                clear += 1;
+            } else if around
+                .iter()
+                .all(|&(dj, nj)| n.dot(nj) > 0.9999 && (dj / d - 1.0).abs() < 0.2)
+            {
+                assert_eq!(samples, 1.0, "pixel ({x}, {y}) is on a plane");
+                flat += 1;
+            }
+        }
+    }
+    for i in 0..w * h {
+        let samples = view("samples", i).x;
+        assert!(samples == 1.0 || samples == 4.0, "{samples}");
+        edges += usize::from(samples == 4.0);
+    }
+    assert_eq!(report.samples as usize, w * h + 3 * edges);
+    assert!(
+        clear > 0 && flat > w * h / 2,
+        "{clear} pixels on clear edges, {flat} on planes"
+    );
+    assert!(edges < w * h / 4, "{edges} pixels on edges");
+    // The option refuses what it cannot do.
+    let mut bad = config(8, 8, 1);
+    bad.frame.texture_cache.edge_spp = 0;
+    assert!(bad.validate().is_err());
+}

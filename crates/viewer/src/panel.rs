@@ -460,6 +460,8 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 .text("budget (MB)"),
         );
         ui.add(egui::Slider::new(&mut t.min_roughness, 0.0..=1.0).text("bypass below roughness"));
+        ui.add(egui::Slider::new(&mut t.edge_spp, 1..=8).text("samples on edges"))
+            .on_hover_text("Camera samples per frame of a pixel on a silhouette or a crease");
     });
 }
 

@@ -175,6 +175,10 @@ impl Pipeline {
         let cfg = &config.frame;
         // Seed 000's techniques: each pixel continues its own sample count.
         let counts = cfg.adaptive.enabled || cfg.reprojection.enabled;
+        // Pixels' counts differ (the report counts them): seed 000's, or the texture cache's
+        // edges' samples.
+        let tc = &cfg.texture_cache;
+        let varying = counts || (tc.enabled && tc.edge_spp > f.spp);
         let traced = !(cfg.accumulate && cfg.max_frames > 0 && f.frames >= cfg.max_frames);
         let (mut rays, mut samples, mut tau, mut above_one) = (0, 0, None, None);
         let mut cache_report = None;
@@ -237,7 +241,7 @@ impl Pipeline {
             f.times.since(LIGHTING, t);
             // Accumulation: into reprojection's states when it is on.
             let t = Instant::now();
-            samples = match counts {
+            samples = match varying {
                 true => History::samples(&f.lighting),
                 false => f.spp as u64 * f.pixels() as u64,
             };
@@ -261,7 +265,7 @@ impl Pipeline {
             frame: f.number,
             epoch: f.epoch,
             accumulated: f.frames,
-            spp: match counts {
+            spp: match varying {
                 true => History::mean_samples(&f.history),
                 false => f.history.first().map_or(0, |h| h.n),
             },

@@ -32,6 +32,9 @@
 //! dominated `"all"` along the interior's orbit: bright texels leaking into shade, which
 //! relMSE weighs most), for a shadow ray per pixel; without a sun, as `"all"`. With ReSTIR
 //! (seed 004), a cached pixel's direct light is its reservoir's whatever the cache holds.
+//! A pixel on a silhouette or a crease (`edge_spp`, [`GBuffer::on_edge`]) takes more camera
+//! samples, each looking its light up: a single sample's coverage of an edge is what the
+//! cache leaves of a moving camera's error.
 //! Pixels on glossy (`min_roughness`), metallic, transmissive or mirror-like surfaces bypass
 //! the cache: their whole path is traced per pixel, as without it. The cached
 //! light is the cosine-weighted mean of the incoming light (a white Lambertian's reflected
@@ -111,7 +114,7 @@ use crate::world::World;
 
 use super::accumulation::PixelStats;
 use super::display::{viridis, View, ViewKind, NONE};
-use super::gbuffer::PrimaryHit;
+use super::gbuffer::{GBuffer, PrimaryHit};
 use super::lighting::{self, LightSample};
 use super::stage::Stage;
 use super::state::{Change, FrameState};
@@ -131,6 +134,12 @@ const CHANNELS: usize = 6;
 const WAYS: usize = 8;
 /// Largest filter window.
 pub const MAX_KERNEL: u32 = 41;
+/// Most camera samples per frame of a pixel on an edge ([`TextureCacheConfig::edge_spp`]).
+pub const MAX_EDGE_SPP: u32 = 64;
+/// The first sample index of the edges' own samples (a frame's pixel takes `EDGE_SAMPLES +
+/// index * edge_spp + k`: apart from the frames' own indices, at most 2^24, and from each
+/// other's, as long as `index * edge_spp` stays below 2^30).
+const EDGE_SAMPLES: u32 = 1 << 30;
 /// Largest budget, in MB: the tables are allocated whole when the cache is switched on, and a
 /// larger one buys nothing at the resolutions the pipeline runs (256 bytes per pixel already
 /// evict nothing at 320x180; 4 GB is 2,000 bytes per pixel at 1920x1080).
@@ -225,6 +234,11 @@ pub struct TextureCacheConfig {
     /// Pixels on surfaces smoother than this (perceptual roughness), metallic above 0.5,
     /// transmissive or with a mirror-like lobe trace their whole path instead.
     pub min_roughness: f32,
+    /// Camera samples a pixel on a silhouette or a crease takes per frame, if more than the
+    /// frame's ([`crate::frame::gbuffer::GBuffer::on_edge`]): the cache makes a sample cheap
+    /// (its light is looked up), and a single sample's coverage of an edge is what is left of
+    /// a moving camera's error. 1: as every pixel (not in the paper).
+    pub edge_spp: u32,
 }
 
 impl Default for TextureCacheConfig {
@@ -244,6 +258,7 @@ impl Default for TextureCacheConfig {
             lod: LodMeasure::Area,
             interpolate: true,
             min_roughness: 0.3,
+            edge_spp: 1,
         }
     }
 }
@@ -309,6 +324,12 @@ impl TextureCacheConfig {
             "frame.texture_cache.min_roughness",
             self.min_roughness,
             "in [0, 1]",
+        )?;
+        require(
+            (1..=MAX_EDGE_SPP).contains(&self.edge_spp),
+            "frame.texture_cache.edge_spp",
+            self.edge_spp,
+            &format!("from 1 to {MAX_EDGE_SPP}"),
         )
     }
 
@@ -871,8 +892,8 @@ impl CacheFrame<'_> {
         x: u32,
         y: u32,
         hit: &PrimaryHit,
-        index: u32,
-        spp: u32,
+        (index, spp): (u32, u32),
+        gbuffer: &GBuffer,
         along: bool,
         direct: Option<Vec3>,
         record: &mut CachePixel,
@@ -891,8 +912,18 @@ impl CacheFrame<'_> {
                     (l.stats, l.bounce, r)
                 }
             };
-        for k in 1..spp {
-            let (d, i, r) = self.another(tracer, x, y, index + k);
+        // The frame's samples, then on an edge the others (numbered apart from every frame's:
+        // the frames' own go on from `index + spp`).
+        let edge = self.cfg.edge_spp > spp && gbuffer.on_edge(x, y);
+        let all = if edge { self.cfg.edge_spp } else { spp };
+        for k in 1..all {
+            let i = match k < spp {
+                true => index + k,
+                false => EDGE_SAMPLES
+                    .wrapping_add(index.wrapping_mul(self.cfg.edge_spp))
+                    .wrapping_add(k),
+            };
+            let (d, i, r) = self.another(tracer, x, y, i);
             stats.add(d, i);
             rays += r;
         }

@@ -331,7 +331,10 @@ pub fn lighting<P: Plan>(
                 None
             };
             let (sample, r) = match cache.as_mut() {
-                Some((c, rec)) => c.light(tracer, x, y, hit, index, spp, along, d, &mut rec[k]),
+                Some((c, rec)) => {
+                    let samples = (index, spp);
+                    c.light(tracer, x, y, hit, samples, gbuffer, along, d, &mut rec[k])
+                }
                 None => lighting::light(tracer, x, y, hit, index, spp, along, d),
             };
             *l = sample;
