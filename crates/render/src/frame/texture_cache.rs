@@ -644,6 +644,12 @@ impl Table {
     }
 }
 
+/// What a camera sample's lookups cost: rays traced (its own and its cells'), cells shaded.
+struct Work {
+    rays: u64,
+    cells: u32,
+}
+
 /// What the cache did at one pixel (the stage's views).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct CachePixel {
@@ -709,14 +715,8 @@ struct Caches {
     texels: Table,
     /// Frames the cache has served (its slots' frame stamps; 0: never).
     frame: u32,
-    /// This frame's number among every cache's frames in the process (the threads' recent
-    /// texel blocks, [`RECENT`], are this frame's if they carry it).
-    serial: u64,
     counters: Counters,
 }
-
-/// Frames served by every cache of the process ([`Caches::serial`]).
-static SERIALS: AtomicU64 = AtomicU64::new(1);
 
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
 #[derive(Default)]
@@ -816,7 +816,6 @@ impl TextureCache {
         if !std::mem::take(&mut self.same_instant) || self.cache.frame == 0 {
             self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
         }
-        self.cache.serial = SERIALS.fetch_add(1, Ordering::Relaxed);
         self.cache.counters = Counters::default();
         self.pixels.clear();
         self.pixels.resize(pixels, CachePixel::default());
@@ -1026,18 +1025,14 @@ impl CacheFrame<'_> {
             self.cfg.lod_bias,
             self.cfg.lod == LodMeasure::Area,
         );
-        let mut rays = s.rays as u64;
+        let mut work = Work {
+            rays: s.rays as u64,
+            cells: record.shaded,
+        };
         let mut light = [0.0f32; CHANNELS];
         let (status, key) = match self.cfg.interpolate && self.cfg.filter != CacheFilter::None {
-            true => self.interpolated(
-                tracer,
-                &cell,
-                v.surface.bary,
-                &mut light,
-                &mut rays,
-                &mut record.shaded,
-            ),
-            false => self.lookup(tracer, &cell, &mut light, &mut rays, &mut record.shaded),
+            true => self.interpolated(tracer, &cell, v.surface.bary, &mut light, &mut work),
+            false => self.lookup(tracer, &cell, &mut light, &mut work),
         };
         let albedo = directional_albedo(&bsdf, v.surface.to_local(-hit.ray.direction), albedo_rng);
         let indirect = albedo * Vec3::from_slice(&light[self.cfg.channels() - 3..]);
@@ -1052,21 +1047,21 @@ impl CacheFrame<'_> {
             (CachedTerms::Indirect, _) => Vec3::ZERO,
             (_, Some(reservoir)) => reservoir,
             (CachedTerms::All, None) => Vec3::ZERO,
-            (CachedTerms::Sky, None) => self.sunlight(tracer, v, &bsdf, hit, &mut rays),
+            (CachedTerms::Sky, None) => self.sunlight(tracer, v, &bsdf, hit, &mut work.rays),
         };
         let d = s.direct + own + cached;
         *record = CachePixel {
             key,
             level: cell.level,
             status,
+            shaded: work.cells,
             light: indirect + cached,
-            ..*record
         };
         let bounce = crate::path::Bounce {
             radiance: Vec3::from_slice(&light[self.cfg.channels() - 3..]),
             ..s.bounce
         };
-        Some((d, indirect, rays, bounce))
+        Some((d, indirect, work.rays, bounce))
     }
 
     /// With `terms = "sky"`: the direct light of the environment's sun at first hit `v` (BSDF
@@ -1105,8 +1100,7 @@ impl CacheFrame<'_> {
         cell: &Cell,
         bary: glam::Vec2,
         out: &mut [f32; CHANNELS],
-        rays: &mut u64,
-        shaded: &mut u32,
+        work: &mut Work,
     ) -> (Status, u64) {
         let ch = self.cfg.channels();
         let r = self.grids.resolution(cell);
@@ -1139,7 +1133,7 @@ impl CacheFrame<'_> {
                 Some(b) => b,
                 None => {
                     blocks[read].0 = block;
-                    let st = self.texel_block(tracer, &block, &mut blocks[read].1, rays, shaded);
+                    let st = self.texel_block(tracer, &block, &mut blocks[read].1, work);
                     if st != Status::Hit {
                         status = st;
                     }
@@ -1154,7 +1148,7 @@ impl CacheFrame<'_> {
             total += w;
         }
         if total <= 0.0 {
-            return self.lookup(tracer, cell, out, rays, shaded);
+            return self.lookup(tracer, cell, out, work);
         }
         for c in 0..ch {
             out[c] = sum[c] / total;
@@ -1177,8 +1171,7 @@ impl CacheFrame<'_> {
         tracer: &PathTracer,
         cell: &Cell,
         out: &mut [f32; CHANNELS],
-        rays: &mut u64,
-        shaded: &mut u32,
+        work: &mut Work,
     ) -> (Status, u64) {
         let ch = self.cfg.channels();
         let (block, k) = Block::of(cell, self.grids.resolution(cell));
@@ -1186,7 +1179,7 @@ impl CacheFrame<'_> {
         if self.cfg.filter == CacheFilter::None {
             let mut cells = [0.0f32; CELLS * (1 + CHANNELS)];
             let t = Instant::now();
-            let status = self.sample_block(tracer, &block, &mut cells, rays, shaded);
+            let status = self.sample_block(tracer, &block, &mut cells, work);
             self.time(t);
             let stride = 1 + ch;
             out[..ch].copy_from_slice(&cells[k * stride + 1..(k + 1) * stride]);
@@ -1194,7 +1187,7 @@ impl CacheFrame<'_> {
         }
         let square = k / 2;
         let mut texels = [0.0f32; SQUARES * CHANNELS];
-        let status = self.texel_block(tracer, &block, &mut texels, rays, shaded);
+        let status = self.texel_block(tracer, &block, &mut texels, work);
         out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
         (status, key)
     }
@@ -1207,40 +1200,34 @@ impl CacheFrame<'_> {
         tracer: &PathTracer,
         block: &Block,
         out: &mut [f32; SQUARES * CHANNELS],
-        rays: &mut u64,
-        shaded: &mut u32,
+        work: &mut Work,
     ) -> Status {
-        let (bkey, frame, serial) = (block.key(), self.cache.frame, self.cache.serial);
-        if RECENT.with_borrow(|r| r.find(serial, bkey, out)) {
-            return Status::Hit;
-        }
+        let (bkey, frame) = (block.key(), self.cache.frame);
         let texels = &mut out[..SQUARES * self.cfg.channels()];
         let table = &self.cache.texels;
-        let status = loop {
+        loop {
             match table.claim(bkey, frame) {
                 Claim::Ready(i, s) => {
                     table.read(i, texels);
                     if table.still(i, s, frame) {
-                        break Status::Hit;
+                        return Status::Hit;
                     }
                 }
                 Claim::Busy => std::thread::yield_now(),
                 claim => {
                     let t = Instant::now();
-                    self.filter(tracer, block, texels, rays, shaded);
+                    self.filter(tracer, block, texels, work);
                     self.time(t);
                     let Claim::Mine(i, _) = claim else {
-                        break Status::Uncached;
+                        return Status::Uncached;
                     };
                     table.write(i, texels);
                     table.publish(i, bkey, frame);
                     self.cache.counters.texels.fetch_add(1, Ordering::Relaxed);
-                    break Status::Miss;
+                    return Status::Miss;
                 }
             }
-        };
-        RECENT.with_borrow_mut(|r| r.keep(serial, bkey, out));
-        status
+        }
     }
 
     /// Sample block `block` shaded this frame, its cells' data (count, channels) into `out`:
@@ -1250,11 +1237,10 @@ impl CacheFrame<'_> {
         tracer: &PathTracer,
         block: &Block,
         out: &mut [f32],
-        rays: &mut u64,
-        shaded: &mut u32,
+        work: &mut Work,
     ) -> Status {
         loop {
-            if let Some(status) = self.try_sample_block(tracer, block, out, rays, shaded) {
+            if let Some(status) = self.try_sample_block(tracer, block, out, work) {
                 return status;
             }
             std::thread::yield_now();
@@ -1268,8 +1254,7 @@ impl CacheFrame<'_> {
         tracer: &PathTracer,
         block: &Block,
         out: &mut [f32],
-        rays: &mut u64,
-        shaded: &mut u32,
+        work: &mut Work,
     ) -> Option<Status> {
         let table = &self.cache.samples;
         let frame = self.cache.frame;
@@ -1281,12 +1266,12 @@ impl CacheFrame<'_> {
             }
             Claim::Busy => None,
             Claim::Mine(i, fresh) => {
-                self.shade_slot(tracer, block, i, fresh, out, rays, shaded);
+                self.shade_slot(tracer, block, i, fresh, out, work);
                 Some(Status::Miss)
             }
             Claim::Full => {
                 out.fill(0.0);
-                self.shade(tracer, block, out, rays, shaded);
+                self.shade(tracer, block, out, work);
                 self.cache.counters.uncached.fetch_add(1, Ordering::Relaxed);
                 Some(Status::Uncached)
             }
@@ -1304,8 +1289,7 @@ impl CacheFrame<'_> {
         i: usize,
         fresh: bool,
         out: &mut [f32],
-        rays: &mut u64,
-        shaded: &mut u32,
+        work: &mut Work,
     ) {
         let table = &self.cache.samples;
         if fresh {
@@ -1313,7 +1297,7 @@ impl CacheFrame<'_> {
         } else {
             table.read(i, out);
         }
-        self.shade(tracer, block, out, rays, shaded);
+        self.shade(tracer, block, out, work);
         table.write(i, out);
         table.publish(i, block.key(), self.cache.frame);
         self.cache.counters.blocks.fetch_add(1, Ordering::Relaxed);
@@ -1321,14 +1305,7 @@ impl CacheFrame<'_> {
 
     /// Shades `block`'s cells into their data `data` (count, channels per cell) by the
     /// temporal rule.
-    fn shade(
-        &self,
-        tracer: &PathTracer,
-        block: &Block,
-        data: &mut [f32],
-        rays: &mut u64,
-        shaded: &mut u32,
-    ) {
+    fn shade(&self, tracer: &PathTracer, block: &Block, data: &mut [f32], work: &mut Work) {
         let ch = self.cfg.channels();
         let stride = 1 + ch;
         let world = tracer.world;
@@ -1387,12 +1364,12 @@ impl CacheFrame<'_> {
                 let l = ls.map_or(Vec3::ZERO, |ls| {
                     tracer.light_alone(&vertex, &bsdf, -ray.direction, &ls, &mut r)
                 });
-                *rays += r as u64;
+                work.rays += r as u64;
                 l
             });
             let direct = (self.cfg.terms != CachedTerms::All).then_some(Vec3::ZERO);
             let s = tracer.trace_lit::<false>(ray, Some(&vertex), sampler, rng, direct);
-            *rays += s.rays as u64;
+            work.rays += s.rays as u64;
             cells += 1;
             let mut v = [0.0f32; CHANNELS];
             v[ch - 3..ch].copy_from_slice(&s.indirect.to_array());
@@ -1419,7 +1396,7 @@ impl CacheFrame<'_> {
             }
             d[0] = (count + 1) as f32;
         }
-        *shaded += cells;
+        work.cells += cells;
         self.cache
             .counters
             .cells
@@ -1430,14 +1407,7 @@ impl CacheFrame<'_> {
     /// separable window over the squares of the blocks around it, each square the mean of its
     /// shaded halves, clipped to the triangle and renormalised. Neighbouring blocks being
     /// shaded by other threads are deferred and read last.
-    fn filter(
-        &self,
-        tracer: &PathTracer,
-        block: &Block,
-        out: &mut [f32],
-        rays: &mut u64,
-        shaded: &mut u32,
-    ) {
+    fn filter(&self, tracer: &PathTracer, block: &Block, out: &mut [f32], work: &mut Work) {
         let ch = self.cfg.channels();
         let stride = 1 + ch;
         let radius = (self.cfg.kernel / 2) as i32;
@@ -1482,14 +1452,14 @@ impl CacheFrame<'_> {
                 let Some(b) = block.beside(dx, dy) else {
                     continue;
                 };
-                match self.try_sample_block(tracer, &b, &mut cells, rays, shaded) {
+                match self.try_sample_block(tracer, &b, &mut cells, work) {
                     Some(_) => gather(&b, &cells, &mut grid),
                     None => deferred.push(b),
                 }
             }
         }
         for b in deferred {
-            self.sample_block(tracer, &b, &mut cells, rays, shaded);
+            self.sample_block(tracer, &b, &mut cells, work);
             gather(&b, &cells, &mut grid);
         }
         // The window's weights, narrowed by the block's own cells' samples.
@@ -1592,8 +1562,8 @@ fn convolve(
                 let det = a * c0 + bb * c1 + cc * c2;
                 (det > 1e-6 * a * d * f).then(|| [c0 / det, c1 / det, c2 / det])
             };
-            match (order, solve(&m)) {
-                (2, Some(k)) => {
+            match (order == 2).then(|| solve(&m)).flatten() {
+                Some(k) => {
                     for c in 0..ch {
                         o[c] = (k[0] * m[0][0][c] + k[1] * m[0][1][c] + k[2] * m[1][0][c]).max(0.0);
                     }
@@ -1613,39 +1583,7 @@ fn convolve(
 /// squares squared times its weight.
 const RIDGE: f32 = 0.25;
 
-/// Texel blocks a thread read last (a pixel's four texels and its neighbours' lie in a few
-/// blocks): found here, a block is not looked up in the table again. Its texels are those the
-/// table holds for the frame (a block is filtered once a frame when nothing is evicted).
-#[derive(Default)]
-struct Recent {
-    /// (the frame's serial, the block's key, its texels), the oldest replaced first.
-    blocks: [(u64, u64, [f32; SQUARES * CHANNELS]); RECENT_BLOCKS],
-    next: usize,
-}
-
-/// Blocks in [`Recent`].
-const RECENT_BLOCKS: usize = 8;
-
-impl Recent {
-    /// Block `key` of frame `serial` into `out`, if kept.
-    fn find(&self, serial: u64, key: u64, out: &mut [f32; SQUARES * CHANNELS]) -> bool {
-        let found = self.blocks.iter().find(|b| b.0 == serial && b.1 == key);
-        if let Some(b) = found {
-            *out = b.2;
-        }
-        found.is_some()
-    }
-
-    fn keep(&mut self, serial: u64, key: u64, texels: &[f32; SQUARES * CHANNELS]) {
-        self.blocks[self.next] = (serial, key, *texels);
-        self.next = (self.next + 1) % RECENT_BLOCKS;
-    }
-}
-
 thread_local! {
-    /// Per thread: the texel blocks it read last.
-    static RECENT: std::cell::RefCell<Recent> = std::cell::RefCell::new(Recent::default());
-
     /// The filter's scratch, per thread: the window's squares, and its rows filtered along x.
     static SCRATCH: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
         const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
