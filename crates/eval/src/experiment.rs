@@ -230,6 +230,7 @@ impl Runner<'_> {
                     rep,
                     seed,
                     view: v,
+                    previous: None,
                 };
                 if c.config.frame.filter.method == Method::Rpf {
                     // The offline filter: each measured view on its own, from the reference
@@ -255,6 +256,10 @@ impl Runner<'_> {
                     continue;
                 }
                 let mut pipeline = Pipeline::new(config_at(&views[0]));
+                // The previous view's images at each budget point and its reference, for the
+                // temporal metrics (kept only when the spec asks for one).
+                let temporal = spec.metrics.iter().any(|m| m.is_temporal());
+                let mut previous: Option<(usize, Vec<(BudgetPoint, Image)>)> = None;
                 for (v, view) in views.iter().enumerate() {
                     pipeline.set_config(&config_at(view));
                     let Some(reference) = references.iter().find(|r| r.0 == v).map(|r| &r.1) else {
@@ -272,8 +277,20 @@ impl Runner<'_> {
                         v + 1,
                         views.len()
                     );
-                    let snapshot = view_run(v, reference, task)
-                        .measure(&mut pipeline, &mut results.measurements)?;
+                    let before = previous.as_ref().filter(|p| p.0 + 1 == v).and_then(|p| {
+                        let r = references.iter().find(|r| r.0 == p.0)?;
+                        Some((&r.1, p.1.as_slice()))
+                    });
+                    let (snapshot, images) = ViewRun {
+                        previous: before,
+                        ..view_run(v, reference, task)
+                    }
+                    .measure(
+                        &mut pipeline,
+                        &mut results.measurements,
+                        temporal,
+                    )?;
+                    previous = temporal.then_some((v, images));
                     if self.cancel.load(Ordering::Relaxed) {
                         results.slopes = slopes(spec, &results.measurements);
                         return Ok(Outcome {
@@ -316,17 +333,22 @@ struct ViewRun<'a> {
     rep: u32,
     seed: u64,
     view: usize,
+    /// The previous view's reference and its images at each budget point (the temporal
+    /// metrics'), if it was measured.
+    previous: Option<(&'a Image, &'a [(BudgetPoint, Image)])>,
 }
 
 impl ViewRun<'_> {
     /// Renders frames at the view until every budget point has passed, pushing a measurement
-    /// at each. Returns the image at the last budget point with its label, or none when
-    /// cancelled.
+    /// at each. Returns the image at the last budget point with its label (none when
+    /// cancelled), and with `keep` the image at each budget point.
+    #[allow(clippy::type_complexity)]
     fn measure(
         &self,
         pipeline: &mut Pipeline,
         out: &mut Vec<Measurement>,
-    ) -> Result<Option<(String, Image)>, EvalError> {
+        keep: bool,
+    ) -> Result<(Option<(String, Image)>, Vec<(BudgetPoint, Image)>), EvalError> {
         let budget = &self.runner.spec.budget;
         let cancel = self.runner.cancel;
         let (w, h) = (pipeline.config().width, pipeline.config().height);
@@ -341,7 +363,7 @@ impl ViewRun<'_> {
         let mut traced = 0u64;
         let mut spp = 0u32;
         let mut stages: BTreeMap<String, f64> = BTreeMap::new();
-        let mut last = None;
+        let (mut last, mut kept) = (None, Vec::new());
         // Once only sample budgets remain: a guard against a technique whose frames trace
         // (almost) nothing (not reached in practice: adaptive sampling's probabilities are at
         // least min_spp / max_spp).
@@ -352,7 +374,7 @@ impl ViewRun<'_> {
             && (next_ms < budget.time_ms.len() || frames < max_frames)
         {
             if cancel.load(Ordering::Relaxed) {
-                return Ok(None);
+                return Ok((None, kept));
             }
             let report: FrameReport = pipeline.render_frame(self.world);
             frames += 1;
@@ -410,9 +432,12 @@ impl ViewRun<'_> {
                     BudgetPoint::TimeMs(t) => format!("{t:.0} ms budget, {mean_spp:.0} spp"),
                 };
                 last = Some((label, image.clone()));
+                if keep {
+                    kept.push((point, image.clone()));
+                }
             }
         }
-        Ok(last)
+        Ok((last, kept))
     }
 
     /// RPF ([`pathlight_render::rpf`]) at each sample budget: the reference path tracer's
@@ -480,7 +505,19 @@ impl ViewRun<'_> {
     ) -> Result<Measurement, EvalError> {
         let mut values = BTreeMap::new();
         for &metric in &self.runner.spec.metrics {
-            values.insert(metric, metrics::compute(metric, image, self.reference)?);
+            if !metric.is_temporal() {
+                values.insert(metric, metrics::compute(metric, image, self.reference)?);
+                continue;
+            }
+            // The previous view's image at the same budget point, if measured.
+            let Some((reference, images)) = self.previous else {
+                continue;
+            };
+            if let Some((_, before)) = images.iter().find(|(p, _)| *p == budget) {
+                let now = (image, self.reference);
+                let value = metrics::compute_temporal(metric, now, (before, reference))?;
+                values.insert(metric, value);
+            }
         }
         Ok(Measurement {
             configuration: self.name.to_owned(),

@@ -325,6 +325,10 @@ fn final_values(results: &Results) -> Table {
                     .last()
                     .copied()
                 else {
+                    // (A temporal metric with a single view measured: none.)
+                    if !row.is_empty() {
+                        row.push("-".to_owned());
+                    }
                     continue;
                 };
                 if i == 0 {

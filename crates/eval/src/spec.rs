@@ -343,6 +343,18 @@ impl Spec {
         if self.metrics.is_empty() {
             return Err("metrics: name at least one".into());
         }
+        if let Some(m) = self.metrics.iter().find(|m| m.is_temporal()) {
+            if self.metrics[0].is_temporal() {
+                return Err(format!(
+                    "metrics: {m} compares consecutive views and has no error map; name another first (the first is drawn in the error maps)"
+                ));
+            }
+            if self.measure != Measure::Every {
+                return Err(format!(
+                    "metrics: {m} compares consecutive views; it needs measure = \"every\""
+                ));
+            }
+        }
         if !(1..=MAX_REPETITIONS).contains(&self.repetitions) {
             return Err(format!(
                 "repetitions {}: must be between 1 and {MAX_REPETITIONS}",
@@ -558,6 +570,11 @@ mod tests {
             (format!("metrics = []\n{MINIMAL}"), "metrics"),
             (format!("repetitions = 0\n{MINIMAL}"), "repetitions 0"),
             (format!("metrics = [\"psnr\", \"nope\"]\n{MINIMAL}"), "nope"),
+            (format!("metrics = [\"mse\", \"flicker\"]\n{MINIMAL}"), "measure = \"every\""),
+            (
+                format!("measure = \"every\"\nmetrics = [\"flicker\", \"mse\"]\n{MINIMAL}"),
+                "name another first",
+            ),
             (format!("{MINIMAL}\n[camera]\npath = \"rotation\"\nstep_degrees = 0\n"), "step"),
             (format!("{MINIMAL}\n[camera]\npath = \"rotation\"\ndegrees = 1e9\nstep_degrees = 1e-3\n"), "views"),
             (format!("{MINIMAL}\n[camera]\nfov_y = 500\n"), "fov_y"),

@@ -189,6 +189,46 @@ fn rotation_measured_at_every_view_has_one_reference_per_view() {
     std::fs::remove_dir_all(&cache).unwrap();
 }
 
+/// Flicker compares consecutive measured views: none at the first, and a frame of one sample
+/// per pixel changes between views by more than the references do, more than a frame of
+/// sixteen.
+#[test]
+fn flicker_is_measured_between_consecutive_views() {
+    let mut spec = Spec::parse(SPEC).unwrap();
+    spec.repetitions = 1;
+    spec.metrics = vec![Metric::Mse, Metric::Flicker];
+    spec.budget.spp = vec![1, 16];
+    spec.reference.spp = 64;
+    spec.camera.path = pathlight_render::camera_path::PathKind::Rotation;
+    spec.camera.degrees = 4.0;
+    spec.camera.step_degrees = 1.0;
+    spec.measure = pathlight_eval::spec::Measure::Every;
+    spec.validate().unwrap();
+    let cache = temp_dir("flicker");
+    let out = run(&spec, &cache, None).results;
+    assert_eq!(out.views.len(), 5);
+    let flicker = |view: usize, spp: u32| {
+        out.measurements
+            .iter()
+            .find(|m| {
+                m.configuration == "sobol" && m.view == view && m.budget == BudgetPoint::Spp(spp)
+            })
+            .unwrap()
+            .metrics
+            .get(&Metric::Flicker)
+            .copied()
+    };
+    assert_eq!(flicker(0, 1), None, "no view before the first");
+    for v in 1..5 {
+        let (one, sixteen) = (flicker(v, 1).unwrap(), flicker(v, 16).unwrap());
+        assert!(
+            one > 1.5 * sixteen && sixteen > 0.0,
+            "view {v}: {one} vs {sixteen}"
+        );
+    }
+    std::fs::remove_dir_all(&cache).unwrap();
+}
+
 #[test]
 fn time_budgets_are_met_and_published_files_exist() {
     let mut spec = Spec::parse(SPEC).unwrap();

@@ -16,6 +16,7 @@
 //! Sums are accumulated in f64, row by row and then in row order, so results do not depend
 //! on the thread count.
 
+mod flicker;
 mod flip;
 mod luv;
 mod mse;
@@ -67,10 +68,17 @@ pub enum Metric {
     /// (1, 1, 1) (so Yn = 1), without clamping; the mean over pixels and the three
     /// components of the squared differences.
     Luvmse,
+    /// Flicker along a camera path (a temporal metric: [`compute_temporal`]): the change from
+    /// the previous view's image to this one's that the references do not have, the mean over
+    /// pixels and the three channels of `|(s(img) - s(img')) - (s(ref) - s(ref'))|`, `s` the
+    /// sRGB encoding clamped to [0, 1], primes the previous view's. At a still view against a
+    /// converged reference it is the mean absolute difference of consecutive frames (`pathlight
+    /// play`'s flicker, there of their 8-bit encodings).
+    Flicker,
 }
 
 impl Metric {
-    /// Every metric, in declaration order.
+    /// Every metric of one image against its reference, in declaration order.
     pub const ALL: [Metric; 7] = [
         Metric::Mse,
         Metric::Rmse,
@@ -80,6 +88,14 @@ impl Metric {
         Metric::Flip,
         Metric::Luvmse,
     ];
+
+    /// Every metric of two consecutive views' images against their references.
+    pub const TEMPORAL: [Metric; 1] = [Metric::Flicker];
+
+    /// Whether it compares consecutive views ([`compute_temporal`]) rather than one image.
+    pub fn is_temporal(self) -> bool {
+        Metric::TEMPORAL.contains(&self)
+    }
 
     /// The lowercase name, as parsed by [`FromStr`] and written by serde and [`Display`](fmt::Display).
     pub fn name(self) -> &'static str {
@@ -91,6 +107,7 @@ impl Metric {
             Metric::Ssim => "ssim",
             Metric::Flip => "flip",
             Metric::Luvmse => "luvmse",
+            Metric::Flicker => "flicker",
         }
     }
 
@@ -109,6 +126,7 @@ impl Metric {
             Metric::Ssim => "SSIM (sRGB, Gaussian σ = 1.5)",
             Metric::Flip => "ꟻLIP (LDR, 67 pixels per degree)",
             Metric::Luvmse => "MSE in CIELUV (seed 001)",
+            Metric::Flicker => "flicker: |change - the reference's change| between views (sRGB)",
         }
     }
 }
@@ -121,7 +139,9 @@ impl fmt::Display for Metric {
 
 /// A metric name that [`Metric::from_str`] does not know.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown metric `{name}`; valid metrics: mse, rmse, relmse, psnr, ssim, flip, luvmse")]
+#[error(
+    "unknown metric `{name}`; valid metrics: mse, rmse, relmse, psnr, ssim, flip, luvmse, flicker"
+)]
 pub struct ParseMetricError {
     pub name: String,
 }
@@ -134,6 +154,7 @@ impl FromStr for Metric {
         let wanted = s.trim();
         Metric::ALL
             .into_iter()
+            .chain(Metric::TEMPORAL)
             .find(|m| m.name().eq_ignore_ascii_case(wanted))
             .ok_or_else(|| ParseMetricError {
                 name: s.to_string(),
@@ -171,6 +192,18 @@ pub enum MetricError {
         g: f32,
         b: f32,
     },
+    #[error(
+        "the two views' images differ in size: {width}x{height}, the previous \
+         {previous_width}x{previous_height}"
+    )]
+    ViewSizeMismatch {
+        width: u32,
+        height: u32,
+        previous_width: u32,
+        previous_height: u32,
+    },
+    #[error("{metric} compares two consecutive views' images, not one image")]
+    Temporal { metric: Metric },
 }
 
 /// Computes `metric` of `image` against `reference` (see [`Metric`] for each definition and
@@ -188,7 +221,32 @@ pub fn compute(metric: Metric, image: &Image, reference: &Image) -> Result<f64, 
             pair.mean(&map)
         }
         Metric::Luvmse => pair.mean(&luv::squared_error_map(&pair)),
+        Metric::Flicker => return Err(MetricError::Temporal { metric }),
     })
+}
+
+/// Computes temporal `metric` (see [`Metric::TEMPORAL`]) of `image` after `previous`, the
+/// images of two consecutive views, against their references; the input rules of
+/// [`compute`] hold for both pairs, and the two views' sizes must agree.
+pub fn compute_temporal(
+    metric: Metric,
+    (image, reference): (&Image, &Image),
+    (previous, previous_reference): (&Image, &Image),
+) -> Result<f64, MetricError> {
+    let now = Pair::new(image, reference)?;
+    let before = Pair::new(previous, previous_reference)?;
+    if (now.width, now.height) != (before.width, before.height) {
+        return Err(MetricError::ViewSizeMismatch {
+            width: image.width,
+            height: image.height,
+            previous_width: previous.width,
+            previous_height: previous.height,
+        });
+    }
+    match metric {
+        Metric::Flicker => Ok(now.mean(&flicker::error_map(&now, &before))),
+        _ => compute(metric, image, reference),
+    }
 }
 
 /// Per-pixel error, `width * height` values, row-major, row 0 at the top: whose mean is the
@@ -216,6 +274,7 @@ pub fn error_map(
         Metric::Ssim => narrow(ssim::SsimMap::new(&pair).one_minus_ssim()),
         Metric::Flip => flip::error_map(&pair),
         Metric::Luvmse => narrow(luv::squared_error_map(&pair)),
+        Metric::Flicker => return Err(MetricError::Temporal { metric }),
     })
 }
 
@@ -443,7 +502,7 @@ mod tests {
 
     #[test]
     fn names_round_trip_and_parse_case_insensitively() {
-        for metric in Metric::ALL {
+        for metric in Metric::ALL.into_iter().chain(Metric::TEMPORAL) {
             assert_eq!(metric.name().parse::<Metric>().unwrap(), metric);
             assert_eq!(metric.to_string().parse::<Metric>().unwrap(), metric);
             assert_eq!(
@@ -459,7 +518,7 @@ mod tests {
         let err = "l2".parse::<Metric>().unwrap_err();
         let msg = err.to_string();
         assert!(msg.contains("`l2`"), "{msg}");
-        for metric in Metric::ALL {
+        for metric in Metric::ALL.into_iter().chain(Metric::TEMPORAL) {
             assert!(msg.contains(metric.name()), "{msg}");
         }
     }
