@@ -58,9 +58,11 @@ pub trait F32xN:
     fn sqrt(self) -> Self;
     /// `self`, or `floor` in the lanes where `self` is below it or NaN (one instruction).
     fn at_least(self, floor: Self) -> Self;
-    /// `1 / self` for finite, non-zero, normal lanes, to within about 2^-22 of it: the
-    /// processor's estimate refined by one Newton step (exact in plain arrays). A division
-    /// takes one unit 16 cycles per AVX-512 register, this a few pipelined instructions.
+    /// `1 / self`, a division correctly rounded in every implementation (the processors'
+    /// estimates, `rcp_ps` and `rcp14_ps` refined by a Newton step, left the last bit to an
+    /// estimate that differs between Intel's and AMD's processors, and so the frames: the
+    /// filters take it once per pixel, not per tap, where a division's 16 cycles per register
+    /// do not show).
     fn recip(self) -> Self;
     fn floor(self) -> Self;
     /// The lanes' bits shifted left by 23 (an integer operation on the float's bits: a whole
@@ -739,10 +741,9 @@ impl F32xN for Avx512 {
     }
     #[inline(always)]
     fn recip(self) -> Self {
-        // The estimate to 2^-14, then r + r (1 - x r).
-        let r = avx512!(_mm512_rcp14_ps(self.0));
-        let e = avx512!(_mm512_fnmadd_ps(self.0, r, _mm512_set1_ps(1.0)));
-        Self(avx512!(_mm512_fmadd_ps(r, e, r)))
+        // A division, correctly rounded: the same bits on every processor (an estimate's
+        // refinement, `rcp14` and a Newton step, left the last bit to the estimate).
+        Self(avx512!(_mm512_div_ps(_mm512_set1_ps(1.0), self.0)))
     }
     #[inline(always)]
     fn floor(self) -> Self {
@@ -971,10 +972,10 @@ impl F32xN for Avx2 {
     }
     #[inline(always)]
     fn recip(self) -> Self {
-        // The estimate to 1.5 2^-12, then r + r (1 - x r).
-        let r = avx2!(_mm256_rcp_ps(self.0));
-        let e = avx2!(_mm256_fnmadd_ps(self.0, r, _mm256_set1_ps(1.0)));
-        Self(avx2!(_mm256_fmadd_ps(r, e, r)))
+        // A division, correctly rounded: `rcp_ps`'s estimate differs between processors
+        // (Intel's and AMD's give other bits), and a Newton step on it left its last bit to
+        // the estimate, so that frames differed from one processor to another.
+        Self(avx2!(_mm256_div_ps(_mm256_set1_ps(1.0), self.0)))
     }
     #[inline(always)]
     fn floor(self) -> Self {
@@ -1094,8 +1095,8 @@ mod tests {
                 same(va.abs().sqrt(), &|x, _| x.abs().sqrt());
                 same(va.floor(), &|x, _| x.floor());
                 same(va.at_least(vb), &|x, y| if x >= y { x } else { y });
-                // The reciprocal to about 2^-22 (its estimate's error squared), on values
-                // from 1e-30 to 1e30, negative ones too.
+                // The reciprocal (a division: exact to rounding), on values from 1e-30 to
+                // 1e30, negative ones too.
                 for scale in [1e-30, 1e-3, 1.0, 7.0e4, 1e30] {
                     let r = (va * V::splat(scale)).recip().to_array();
                     for (j, r) in r.iter().enumerate().take(V::N) {

@@ -751,6 +751,26 @@ impl Lights {
         solid_angle(&self.triangles[light], p, q).map_or(0.0, |(_, _, pdf)| select * pdf)
     }
 
+    /// The most a white Lambertian surface lit by these lights directly can reflect, in
+    /// luminance: the environment's irradiance at most (its luminance over the whole sphere)
+    /// over pi, plus the brightest emissive triangle's luminance (a surface against it receives
+    /// at most pi times that); infinite with a punctual light (a point's irradiance grows
+    /// without bound as a surface nears it). Light beyond it reaching a surface through one
+    /// bounce came off a glossy or specular surface (a caustic).
+    pub fn reflected_bound(&self) -> f32 {
+        if !self.punctual.is_empty() {
+            return f32::INFINITY;
+        }
+        let environment = self.environment.as_ref().map_or(0.0, |e| {
+            environment_weights(&e.env, |_| true).2 as f32 / std::f32::consts::PI
+        });
+        // (An emissive texture scales the factor by at most 1.)
+        let emitters = (self.emitters.iter())
+            .map(|e| weight(e.emissive))
+            .fold(0.0f32, f32::max);
+        environment + emitters
+    }
+
     /// Radiance of the environment along `dir` (toward the sky); zero without one.
     pub fn environment_radiance(&self, dir: Vec3) -> Vec3 {
         self.environment(dir).0

@@ -37,14 +37,7 @@ fn run(
     moving: bool,
 ) -> (Vec<Vec<Vec3>>, Vec<CacheReport>, Vec<usize>) {
     let views = if moving {
-        let path = CameraPath {
-            path: PathKind::Orbit,
-            degrees: 6.0,
-            steps: frames as u32,
-            frames_per_view: 1,
-            ..CameraPath::default()
-        };
-        world.path_views(&path)
+        orbit(world, 6.0, frames as u32)
     } else {
         vec![cfg.camera.clone(); frames]
     };
@@ -62,6 +55,18 @@ fn run(
         blocks.push(pipeline.texture_cache.blocks_at_current_frame());
     }
     (images, reports, blocks)
+}
+
+/// The views of an orbit of `degrees` in `steps` steps about `world`'s camera.
+fn orbit(world: &World, degrees: f32, steps: u32) -> Vec<pathlight_render::config::CameraConfig> {
+    let path = CameraPath {
+        path: PathKind::Orbit,
+        degrees,
+        steps,
+        frames_per_view: 1,
+        ..CameraPath::default()
+    };
+    world.path_views(&path)
 }
 
 #[test]
@@ -114,13 +119,18 @@ fn the_white_furnace_converges_through_the_cache() {
     // The sky's light at a cell is next event estimation alone (no sun here: the whole sky),
     // a uniform sphere's samples for a uniform sky (variance 5/3 per sample against 0 for the
     // cosine-weighted BSDF ray that multiple importance sampling adds in `all`): more frames.
-    for (filter, terms, frames) in [
-        (CacheFilter::None, CachedTerms::Indirect, 64),
-        (CacheFilter::None, CachedTerms::All, 64),
-        (CacheFilter::Gaussian, CachedTerms::All, 64),
-        (CacheFilter::Gaussian, CachedTerms::Sky, 256),
+    // With the clamp (at what a white surface lit directly reflects, 4 here), and young cells
+    // brought up to 16 samples: the furnace's light is the same.
+    for (filter, terms, frames, clamp) in [
+        (CacheFilter::None, CachedTerms::Indirect, 64, 0.0),
+        (CacheFilter::None, CachedTerms::All, 64, 0.0),
+        (CacheFilter::Gaussian, CachedTerms::All, 64, 0.0),
+        (CacheFilter::Gaussian, CachedTerms::Sky, 256, 0.0),
+        (CacheFilter::Gaussian, CachedTerms::Sky, 256, 1.0),
     ] {
-        let cfg = cached(&base, filter, terms);
+        let mut cfg = cached(&base, filter, terms);
+        cfg.frame.texture_cache.clamp = clamp;
+        cfg.frame.texture_cache.fresh_spp = if clamp > 0.0 { 16 } else { 1 };
         let (images, _, _) = run(&world, &cfg, frames, false);
         let last = images.last().unwrap();
         let mean = last.iter().map(|p| p.element_sum() / 3.0).sum::<f32>() / last.len() as f32;
@@ -134,12 +144,15 @@ fn the_white_furnace_converges_through_the_cache() {
                 (s / 16.0 - 1.0).abs()
             })
             .fold(0.0f32, f32::max);
-        eprintln!("{filter:?} {terms:?}: mean {mean}, worst 4x4 block {worst}");
+        eprintln!("{filter:?} {terms:?} clamp {clamp}: mean {mean}, worst 4x4 block {worst}");
         assert!(
             (mean - 1.0).abs() < 0.01,
-            "{filter:?} {terms:?}: mean {mean}"
+            "{filter:?} {terms:?} clamp {clamp}: mean {mean}"
         );
-        assert!(worst < 0.1, "{filter:?} {terms:?}: worst block {worst}");
+        assert!(
+            worst < 0.1,
+            "{filter:?} {terms:?} clamp {clamp}: worst block {worst}"
+        );
     }
 }
 
@@ -361,6 +374,10 @@ fn bad_cache_settings_are_refused() {
         "[frame.texture_cache]\nlod_bias = nan\n",
         "[frame.texture_cache]\nmax_count = 0\n",
         "[frame.texture_cache]\nmin_roughness = 2.0\n",
+        "[frame.texture_cache]\nfresh_spp = 0\n",
+        "[frame.texture_cache]\nfresh_spp = 1000\n",
+        "[frame.texture_cache]\nfresh_budget = -1\n",
+        "[frame.texture_cache]\nfresh_budget = nan\n",
     ] {
         let c = Config::default().with_toml(toml).unwrap();
         let e = c.validate().unwrap_err();
@@ -459,4 +476,94 @@ fn pixels_on_edges_take_more_samples() {
     let mut bad = config(8, 8, 1);
     bad.frame.texture_cache.edge_spp = 0;
     assert!(bad.validate().is_err());
+}
+
+/// Young cells brought up to `fresh_spp` after the lighting pass: the first frame's cells are
+/// shaded `fresh_spp` times each (the lighting pass's once and the top-up's `fresh_spp - 1`),
+/// the frames do not depend on the thread count, and the next frame, reading them, is less
+/// noisy than without; after the cold cache's first frame a budget caps the top-up's paths
+/// per frame.
+#[test]
+fn young_cells_are_brought_up_to_fresh_spp_within_the_budget() {
+    let world = cornell();
+    let base = Config {
+        max_bounces: Some(2),
+        ..config(48, 48, 1)
+    };
+    let with = |fresh: u32, budget: f32| {
+        let mut c = cached(&base, CacheFilter::None, CachedTerms::All);
+        c.frame.texture_cache.fresh_spp = fresh;
+        c.frame.texture_cache.fresh_budget = budget;
+        // Each frame on its own (the cache keeps its cells).
+        c.frame.accumulate = false;
+        c.validate().unwrap();
+        c
+    };
+    let (plain, plain_reports, _) = in_pool(2, || run(&world, &with(1, 0.5), 2, false));
+    let (images, reports, _) = in_pool(2, || run(&world, &with(8, 64.0), 2, false));
+    let (single, single_reports, _) = in_pool(1, || run(&world, &with(8, 64.0), 2, false));
+    let lit = plain_reports[0].cells_shaded;
+    assert_eq!(plain_reports[0].topped_up, 0);
+    assert_eq!(reports[0].topped_up, 7 * lit, "every young cell up to 8");
+    assert_eq!(reports[0].cells_shaded, 8 * lit);
+    assert_eq!(reports, single_reports);
+    assert!(images == single, "frames differ between 1 and 2 threads");
+    assert!(
+        plain[0] == images[0],
+        "the first frame reads the cells before the top-up"
+    );
+    // The next frame's noise: its difference from the same frame of another seed (twice the
+    // variance, whatever the texels' bias), over 4x4 blocks of pixels, clamped to 1 as
+    // displayed (a single sample's edges, the lamp's above all, would be the most of it).
+    let noise = |fresh: u32| {
+        let frame = |seed: u64| {
+            let c = Config {
+                seed,
+                ..with(fresh, 64.0)
+            };
+            in_pool(2, || run(&world, &c, 2, false))
+                .0
+                .pop()
+                .expect("two frames")
+        };
+        let (a, b) = (frame(1), frame(2));
+        let block = |v: &[Vec3], k: usize| {
+            let (bx, by) = (k % 12, k / 12);
+            (0..16)
+                .map(|i| v[(by * 4 + i / 4) * 48 + bx * 4 + i % 4].min(Vec3::ONE))
+                .sum::<Vec3>()
+                / 16.0
+        };
+        let d: f32 = (0..144)
+            .map(|k| (block(&a, k) - block(&b, k)).length_squared())
+            .sum();
+        d / 144.0
+    };
+    let (young, topped) = (noise(1), noise(8));
+    assert!(topped < 0.6 * young, "frame 1: {topped} against {young}");
+    // A budget of a twentieth of a path per pixel along an orbit: the cold cache's
+    // first frame brings every cell up, the frames after at most the budget's paths, the
+    // cells they see anew waiting for later frames.
+    let capped = in_pool(2, || {
+        let cfg = with(8, 0.05);
+        let mut pipeline = Pipeline::new(cfg.clone());
+        (orbit(&world, 60.0, 5).into_iter())
+            .map(|camera| {
+                pipeline.set_config(&Config {
+                    camera,
+                    ..cfg.clone()
+                });
+                pipeline.render_frame(&world).texture_cache.expect("on")
+            })
+            .collect::<Vec<_>>()
+    });
+    let cap = (0.05 * 48.0 * 48.0) as u64;
+    assert_eq!(capped[0].topped_up, reports[0].topped_up);
+    for (f, r) in capped.iter().enumerate().skip(1) {
+        assert!(r.topped_up <= cap, "frame {f}: {} paths", r.topped_up);
+    }
+    assert!(
+        capped[1..].iter().any(|r| r.topped_up > cap / 2),
+        "{capped:?}"
+    );
 }

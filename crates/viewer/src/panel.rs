@@ -462,6 +462,15 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         ui.add(egui::Slider::new(&mut t.min_roughness, 0.0..=1.0).text("bypass below roughness"));
         ui.add(egui::Slider::new(&mut t.edge_spp, 1..=8).text("samples on edges"))
             .on_hover_text("Camera samples per frame of a pixel on a silhouette or a crease");
+        ui.add(egui::Slider::new(&mut t.fresh_spp, 1..=64).text("young cells' samples"))
+            .on_hover_text("Samples a cell newly seen is brought up to after the frame");
+        ui.add(egui::Slider::new(&mut t.fresh_budget, 0.0..=2.0).text("young cells' budget"))
+            .on_hover_text("Paths per pixel per frame for young cells");
+        ui.add(egui::Slider::new(&mut t.clamp, 0.0..=8.0).text("clamp (0: off)"))
+            .on_hover_text(
+                "A cell's indirect sample clamped to this multiple of the brightest light a \
+                 white diffuse surface lit directly reflects",
+            );
     });
 }
 

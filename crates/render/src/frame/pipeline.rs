@@ -228,6 +228,12 @@ impl Pipeline {
             let (g, l, hits, times) = (&mut f.gbuffer, &mut f.lighting, &mut f.hits, &mut f.times);
             let with_cache = cache.as_mut().map(|(c, records)| (&*c, &mut **records));
             rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits, with_cache));
+            if let Some((c, _)) = &cache {
+                // Young cells brought up to `fresh_spp` for the frames that follow.
+                let t = Instant::now();
+                rays += c.top_up(&tracer, f.pixels());
+                f.times.since(TEXTURE_CACHE, t);
+            }
             if tc.enabled {
                 let (report, ms) = texture_cache.report();
                 let ms = ms / rayon::current_num_threads() as f64;

@@ -77,7 +77,18 @@
 //! samples, a cell with `max_count` samples is not shaded again, and with `reshade` a block
 //! of `n` samples is shaded again at a frame with probability `reshade / n` (a still scene's
 //! view-independent light converges whatever the camera does, and cells seen for a while cost
-//! less and less); `"exponential"`: Eq. 6, `c = (1 - alpha) c_new + alpha c_old` with `alpha =
+//! less and less). Young cells (`fresh_spp`): after the lighting pass, the blocks it shaded
+//! whose cells hold fewer than `fresh_spp` samples are shaded again up to that count, the
+//! youngest first, within `fresh_budget` paths per pixel (all of them at a cold cache's first
+//! frame), for the frames that follow: a cell newly seen costs its samples once, where the
+//! reshading rate would have spread fewer over many frames (a cell's samples grow as the
+//! square root of the frames it is seen in), and a camera turning toward new rooms pays for
+//! them over a few frames. A sample's indirect light is clamped (`clamp`) to a multiple of
+//! what a white Lambertian surface lit directly can reflect ([`crate::light::Lights::
+//! reflected_bound`]): beyond it the path came off a glossy surface, a caustic too rare for
+//! one cell's samples, that a cell would keep for many frames and its filter spread (the
+//! garden's relMSE was dominated by a few such cells once cells took 16 samples).
+//! `"exponential"`: Eq. 6, `c = (1 - alpha) c_new + alpha c_old` with `alpha =
 //! temporal_alpha`; `"none"`: each frame's sample alone. The filter (box or Gaussian over a
 //! `kernel`-wide window of squares) narrows as `n^-shrink` as the cells gather samples (the
 //! paper notes its fixed kernels are not consistent). `filter = "linear"`: a linear
@@ -92,8 +103,9 @@
 //! inside its triangle (its window is clipped and renormalised at the triangle's edges) and so
 //! needs no normal test; both halves of a square share one filtered texel; eight-way sets; the
 //! level from the footprint's area by default; direct light cached too by default; the
-//! narrowing filter and the reshading rate. The measurements behind the defaults: BENCHMARKS.md,
-//! "Seed 002".
+//! narrowing filter (whose window reads only the blocks its narrowed width reaches), the
+//! reshading rate, the young cells' samples and the clamp. The measurements behind the
+//! defaults: BENCHMARKS.md, "Seed 002".
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::time::Instant;
@@ -136,6 +148,10 @@ const WAYS: usize = 8;
 pub const MAX_KERNEL: u32 = 41;
 /// Most camera samples per frame of a pixel on an edge ([`TextureCacheConfig::edge_spp`]).
 pub const MAX_EDGE_SPP: u32 = 64;
+/// Most samples young cells are brought up to ([`TextureCacheConfig::fresh_spp`]).
+pub const MAX_FRESH_SPP: u32 = 256;
+/// Most paths per pixel per frame for young cells ([`TextureCacheConfig::fresh_budget`]).
+pub const MAX_FRESH_BUDGET: f32 = 64.0;
 /// The first sample index of the edges' own samples (a frame's pixel takes `EDGE_SAMPLES +
 /// index * edge_spp + k`: apart from the frames' own indices, at most 2^24, and from each
 /// other's, as long as `index * edge_spp` stays below 2^30).
@@ -239,6 +255,23 @@ pub struct TextureCacheConfig {
     /// (its light is looked up), and a single sample's coverage of an edge is what is left of
     /// a moving camera's error. 1: as every pixel (not in the paper).
     pub edge_spp: u32,
+    /// With `temporal = "mean"`: the samples a young cell is brought up to after the frame's
+    /// lighting pass (1: none, as the paper; not in the paper). The blocks shaded this frame
+    /// whose cells hold fewer are shaded again up to this count, the youngest first, within
+    /// `fresh_budget`; the frames that follow read them: a camera's first frames and the
+    /// surfaces it turns toward are not a single path's noise for long, and a cell seen once
+    /// costs its samples once.
+    pub fresh_spp: u32,
+    /// Paths per pixel of the frame that bringing young cells up to `fresh_spp` may take per
+    /// frame (the rest wait for the next frame they are seen in): a camera that turns toward
+    /// new rooms pays for them over several frames instead of in one.
+    pub fresh_budget: f32,
+    /// A cell's sample of indirect light is clamped (its luminance, keeping its colour) to
+    /// this multiple of the most a white Lambertian surface lit directly by the scene's lights
+    /// can reflect ([`crate::light::Lights::reflected_bound`]): with two bounces, what exceeds
+    /// it came off a glossy surface (a caustic), a rare path that a cell would keep for many
+    /// frames and its filter spread (0: no clamp, as the paper; not in the paper).
+    pub clamp: f32,
 }
 
 impl Default for TextureCacheConfig {
@@ -259,6 +292,9 @@ impl Default for TextureCacheConfig {
             interpolate: true,
             min_roughness: 0.3,
             edge_spp: 1,
+            fresh_spp: 1,
+            fresh_budget: 0.5,
+            clamp: 0.0,
         }
     }
 }
@@ -330,6 +366,24 @@ impl TextureCacheConfig {
             "frame.texture_cache.edge_spp",
             self.edge_spp,
             &format!("from 1 to {MAX_EDGE_SPP}"),
+        )?;
+        require(
+            (1..=MAX_FRESH_SPP).contains(&self.fresh_spp),
+            "frame.texture_cache.fresh_spp",
+            self.fresh_spp,
+            &format!("from 1 to {MAX_FRESH_SPP}"),
+        )?;
+        require(
+            (0.0..=MAX_FRESH_BUDGET).contains(&self.fresh_budget),
+            "frame.texture_cache.fresh_budget",
+            self.fresh_budget,
+            &format!("between 0 and {MAX_FRESH_BUDGET}"),
+        )?;
+        require(
+            self.clamp.is_finite() && self.clamp >= 0.0,
+            "frame.texture_cache.clamp",
+            self.clamp,
+            "finite and at least 0",
         )
     }
 
@@ -684,6 +738,7 @@ pub enum Status {
 #[derive(Debug, Default)]
 struct Counters {
     cells: AtomicU64,
+    topped_up: AtomicU64,
     blocks: AtomicU64,
     texels: AtomicU64,
     uncached: AtomicU64,
@@ -701,6 +756,8 @@ pub struct CacheReport {
     pub texel_blocks: u64,
     /// Blocks shaded without the cache (their set full of this frame's blocks).
     pub uncached: u64,
+    /// Of the cells shaded, those brought up to `fresh_spp` after the lighting pass.
+    pub topped_up: u64,
     /// Pixels whose first sample looked up a texel.
     pub cached_pixels: u64,
     /// Bytes of the two tables.
@@ -716,6 +773,13 @@ struct Caches {
     /// Frames the cache has served (its slots' frame stamps; 0: never).
     frame: u32,
     counters: Counters,
+    /// The blocks shaded this frame whose cells hold fewer than `fresh_spp` samples, with
+    /// their slots (brought up to it after the lighting pass: [`CacheFrame::top_up`]).
+    young: std::sync::Mutex<Vec<(Block, usize)>>,
+    /// The tables were emptied since the last frame (a scene loaded, settings changed): the
+    /// next top-up brings every young cell up, whatever the budget (the cache warmed up once
+    /// instead of over many frames).
+    cold: bool,
 }
 
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
@@ -725,6 +789,8 @@ pub struct TextureCache {
     grids: Option<(usize, usize, SurfaceGrids)>,
     /// The environment's sun and sky, of the same world as the grids (`terms = "sky"`).
     sun: SunAndSky,
+    /// The same world's [`crate::light::Lights::reflected_bound`] (the clamp's unit).
+    bound: f32,
     cache: Caches,
     /// The tables' configuration (budget's bits, channels): a change reallocates them.
     layout: (u32, usize),
@@ -743,6 +809,8 @@ pub struct CacheFrame<'a> {
     grids: &'a SurfaceGrids,
     sun: &'a SunAndSky,
     cfg: &'a TextureCacheConfig,
+    /// The largest luminance of a cell's sample of indirect light (`clamp`; infinite: none).
+    clamp: f32,
     /// The path tracer for the pixels' own terms at a cached first hit (no continuation).
     short: PathSettings,
     camera: &'a Camera,
@@ -792,6 +860,7 @@ impl TextureCache {
     /// frame's counters, and the pixels' records (`pixels` of them, for the lighting pass to
     /// fill).
     pub fn prepare(&mut self, world: &World, cfg: &TextureCacheConfig, pixels: usize) {
+        self.cache.cold = false;
         let id = (
             world as *const World as usize,
             world.scene.triangle_count() as usize,
@@ -799,6 +868,7 @@ impl TextureCache {
         if self.grids.as_ref().map(|g| (g.0, g.1)) != Some(id) {
             self.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
             self.sun = SunAndSky::new(&world.lights);
+            self.bound = world.lights.reflected_bound();
             self.clear = true;
         }
         let layout = (cfg.budget_mb.to_bits(), cfg.channels());
@@ -808,15 +878,18 @@ impl TextureCache {
             self.cache.texels = Table::new(bytes * 3 / 10, SQUARES * layout.1);
             self.layout = layout;
             self.clear = false;
+            self.cache.cold = true;
         }
         if std::mem::take(&mut self.clear) {
             self.cache.samples.clear();
             self.cache.texels.clear();
+            self.cache.cold = true;
         }
         if !std::mem::take(&mut self.same_instant) || self.cache.frame == 0 {
             self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
         }
         self.cache.counters = Counters::default();
+        self.cache.young.get_mut().expect("not poisoned").clear();
         self.pixels.clear();
         self.pixels.resize(pixels, CachePixel::default());
     }
@@ -834,6 +907,10 @@ impl TextureCache {
             grids: &self.grids.as_ref().expect("made above").2,
             sun: &self.sun,
             cfg,
+            clamp: match cfg.clamp > 0.0 {
+                true => cfg.clamp * self.bound,
+                false => f32::INFINITY,
+            },
             short: PathSettings {
                 max_bounces: Some(match cfg.terms {
                     CachedTerms::Indirect => 1,
@@ -858,6 +935,7 @@ impl TextureCache {
                 blocks_shaded: load(&c.blocks),
                 texel_blocks: load(&c.texels),
                 uncached: load(&c.uncached),
+                topped_up: load(&c.topped_up),
                 cached_pixels: self
                     .pixels
                     .iter()
@@ -1271,7 +1349,7 @@ impl CacheFrame<'_> {
             }
             Claim::Full => {
                 out.fill(0.0);
-                self.shade(tracer, block, out, work);
+                self.shade(tracer, block, out, work, None);
                 self.cache.counters.uncached.fetch_add(1, Ordering::Relaxed);
                 Some(Status::Uncached)
             }
@@ -1297,37 +1375,118 @@ impl CacheFrame<'_> {
         } else {
             table.read(i, out);
         }
-        self.shade(tracer, block, out, work);
+        self.shade(tracer, block, out, work, None);
         table.write(i, out);
         table.publish(i, block.key(), self.cache.frame);
         self.cache.counters.blocks.fetch_add(1, Ordering::Relaxed);
+        if self.cfg.fresh_spp > 1
+            && self.cfg.temporal == Temporal::Mean
+            && block_mean(block, out, 1 + self.cfg.channels()) < self.cfg.fresh_spp as f32
+        {
+            self.cache
+                .young
+                .lock()
+                .expect("not poisoned")
+                .push((*block, i));
+        }
+    }
+
+    /// After the frame's lighting pass: the young blocks it shaded (cells of fewer than
+    /// `fresh_spp` samples) shaded again up to `fresh_spp`, the youngest first (then by key:
+    /// the same blocks whatever the thread count), as many as `fresh_budget` paths per pixel
+    /// of the frame (`pixels`) allow, or all of them at a cold cache's first frame. Returns the
+    /// rays traced.
+    pub fn top_up(&self, tracer: &PathTracer, pixels: usize) -> u64 {
+        use rayon::prelude::*;
+        let mut young = std::mem::take(&mut *self.cache.young.lock().expect("not poisoned"));
+        let (table, frame) = (&self.cache.samples, self.cache.frame);
+        // (A block's words, a cell's.)
+        let (words, stride) = (table.stride, 1 + self.cfg.channels());
+        let target = self.cfg.fresh_spp as f32;
+        // Each block's data, while its slot still holds it as shaded this frame.
+        let data = |&(b, i): &(Block, usize)| {
+            let s = table.states[i].load(Ordering::Acquire);
+            (s == b.key() | READY && table.frames[i].load(Ordering::Acquire) == frame).then(|| {
+                let mut d = [0.0f32; CELLS * (1 + CHANNELS)];
+                table.read(i, &mut d[..words]);
+                d
+            })
+        };
+        let mut order: Vec<(f32, u64, usize)> = young
+            .iter()
+            .enumerate()
+            .filter_map(|(k, y)| data(y).map(|d| (block_mean(&y.0, &d, stride), y.0.key(), k)))
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let budget = match self.cache.cold {
+            true => u64::MAX,
+            false => (self.cfg.fresh_budget as f64 * pixels as f64) as u64,
+        };
+        let mut spent = 0u64;
+        let mut chosen = Vec::new();
+        for &(mean, _, k) in &order {
+            let cells = (0..CELLS).filter(|&c| young[k].0.cell(c).is_some()).count();
+            let cost = ((target - mean).max(0.0) * cells as f32).ceil() as u64;
+            // (One that does not fit waits; a smaller one may.)
+            if spent.saturating_add(cost) > budget {
+                continue;
+            }
+            spent += cost;
+            chosen.push(young[k]);
+        }
+        let rays = chosen
+            .par_iter()
+            .map(|y| {
+                let Some(mut d) = data(y) else { return 0 };
+                let mut work = Work { rays: 0, cells: 0 };
+                self.shade(
+                    tracer,
+                    &y.0,
+                    &mut d[..words],
+                    &mut work,
+                    Some(self.cfg.fresh_spp),
+                );
+                table.write(y.1, &d[..words]);
+                let topped = &self.cache.counters.topped_up;
+                topped.fetch_add(work.cells as u64, Ordering::Relaxed);
+                work.rays
+            })
+            .sum();
+        young.clear();
+        *self.cache.young.lock().expect("not poisoned") = young;
+        rays
     }
 
     /// Shades `block`'s cells into their data `data` (count, channels per cell) by the
-    /// temporal rule.
-    fn shade(&self, tracer: &PathTracer, block: &Block, data: &mut [f32], work: &mut Work) {
+    /// temporal rule, or (`target`) each cell up to that many samples.
+    fn shade(
+        &self,
+        tracer: &PathTracer,
+        block: &Block,
+        data: &mut [f32],
+        work: &mut Work,
+        target: Option<u32>,
+    ) {
         let ch = self.cfg.channels();
         let stride = 1 + ch;
         let world = tracer.world;
         let mut cells = 0;
-        if self.cfg.temporal == Temporal::Mean && self.cfg.reshade > 0.0 {
-            let (mut sum, mut n) = (0.0f32, 0u32);
-            for k in (0..CELLS).filter(|&k| block.cell(k).is_some()) {
-                sum += data[k * stride];
-                n += 1;
-            }
-            let mean = sum / n.max(1) as f32;
+        if target.is_none() && self.cfg.temporal == Temporal::Mean && self.cfg.reshade > 0.0 {
+            let mean = block_mean(block, data, stride);
             let u = (hash(&[block.key(), self.cache.frame as u64, self.seed]) >> 40) as f32
                 / (1u64 << 24) as f32;
             if mean > 0.0 && u * mean >= self.cfg.reshade {
                 return;
             }
         }
-        for k in 0..CELLS {
+        // Each cell once, or (`target`) as many times as it lacks.
+        let rounds = target.unwrap_or(1);
+        for k in (0..rounds).flat_map(|_| 0..CELLS) {
             let Some(cell) = block.cell(k) else { continue };
             let d = &mut data[k * stride..(k + 1) * stride];
             let count = d[0] as u32;
-            if self.cfg.temporal == Temporal::Mean && count >= self.cfg.max_count {
+            let limit = target.map_or(self.cfg.max_count, |t| t.min(self.cfg.max_count));
+            if (self.cfg.temporal == Temporal::Mean || target.is_some()) && count >= limit {
                 continue;
             }
             let (ray, hit) = self.grids.probe(world, &cell);
@@ -1372,7 +1531,12 @@ impl CacheFrame<'_> {
             work.rays += s.rays as u64;
             cells += 1;
             let mut v = [0.0f32; CHANNELS];
-            v[ch - 3..ch].copy_from_slice(&s.indirect.to_array());
+            let lum = pathlight_core::color::luminance(s.indirect);
+            let indirect = match lum > self.clamp {
+                true => s.indirect * (self.clamp / lum),
+                false => s.indirect,
+            };
+            v[ch - 3..ch].copy_from_slice(&indirect.to_array());
             if let Some(sky) = sky {
                 v[..3].copy_from_slice(&sky.to_array());
             } else if ch == 6 {
@@ -1405,12 +1569,18 @@ impl CacheFrame<'_> {
 
     /// The filtered texels of `block`'s squares into `out` (channels per square): the
     /// separable window over the squares of the blocks around it, each square the mean of its
-    /// shaded halves, clipped to the triangle and renormalised. Neighbouring blocks being
-    /// shaded by other threads are deferred and read last.
+    /// shaded halves, clipped to the triangle and renormalised. The window narrows with the
+    /// block's own cells' samples (`shrink`), and only the blocks it reaches are read.
+    /// Neighbouring blocks being shaded by other threads are deferred and read last.
     fn filter(&self, tracer: &PathTracer, block: &Block, out: &mut [f32], work: &mut Work) {
         let ch = self.cfg.channels();
         let stride = 1 + ch;
-        let radius = (self.cfg.kernel / 2) as i32;
+        // The block's own cells first: their mean sample count narrows the window.
+        let mut own = [0.0f32; CELLS * (1 + CHANNELS)];
+        self.sample_block(tracer, block, &mut own, work);
+        let mut weights = [0.0f32; MAX_KERNEL as usize];
+        let weights = self.weights(block_mean(block, &own, stride), &mut weights);
+        let radius = (weights.len() / 2) as i32;
         let reach = (radius + BLOCK as i32 - 1) / BLOCK as i32;
         let side = (2 * reach + 1) as usize;
         // The squares of the (2 reach + 1)^2 blocks around: per square, channel sums and the
@@ -1422,9 +1592,7 @@ impl CacheFrame<'_> {
         grid.resize(w * w * (ch + 1), 0.0);
         let mut cells = [0.0f32; CELLS * (1 + CHANNELS)];
         let mut deferred = Vec::new();
-        // The block's own cells' mean sample count (the filter narrows as it grows).
-        let mut centre = (0.0f32, 0u32);
-        let mut gather = |b: &Block, cells: &[f32], grid: &mut [f32]| {
+        let gather = |b: &Block, cells: &[f32], grid: &mut [f32]| {
             let ox = (b.at.x as i32 - block.at.x as i32 + reach) as usize * BLOCK as usize;
             let oy = (b.at.y as i32 - block.at.y as i32 + reach) as usize * BLOCK as usize;
             for k in 0..CELLS {
@@ -1432,9 +1600,6 @@ impl CacheFrame<'_> {
                     continue;
                 }
                 let d = &cells[k * stride..(k + 1) * stride];
-                if b.at == block.at {
-                    centre = (centre.0 + d[0], centre.1 + 1);
-                }
                 if d[0] <= 0.0 {
                     continue;
                 }
@@ -1447,9 +1612,10 @@ impl CacheFrame<'_> {
                 g[ch] += 1.0;
             }
         };
+        gather(block, &own, &mut grid);
         for dy in -reach..=reach {
             for dx in -reach..=reach {
-                let Some(b) = block.beside(dx, dy) else {
+                let Some(b) = block.beside(dx, dy).filter(|_| (dx, dy) != (0, 0)) else {
                     continue;
                 };
                 match self.try_sample_block(tracer, &b, &mut cells, work) {
@@ -1462,10 +1628,6 @@ impl CacheFrame<'_> {
             self.sample_block(tracer, &b, &mut cells, work);
             gather(&b, &cells, &mut grid);
         }
-        // The window's weights, narrowed by the block's own cells' samples.
-        let mut weights = [0.0f32; MAX_KERNEL as usize];
-        let weights = &mut weights[..self.cfg.kernel as usize];
-        self.weights(centre.0 / centre.1.max(1) as f32, weights);
         let lo = reach as usize * BLOCK as usize;
         let order = match self.cfg.filter {
             CacheFilter::Linear => 2,
@@ -1589,6 +1751,17 @@ thread_local! {
         const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
+/// The mean sample count of `block`'s cells (those in its triangle) in its data `data`
+/// (`stride` values per cell, the count first).
+fn block_mean(block: &Block, data: &[f32], stride: usize) -> f32 {
+    let (mut sum, mut n) = (0.0f32, 0u32);
+    for k in (0..CELLS).filter(|&k| block.cell(k).is_some()) {
+        sum += data[k * stride];
+        n += 1;
+    }
+    sum / n.max(1) as f32
+}
+
 /// Samples of the specular lobe in [`directional_albedo`].
 const ALBEDO_SAMPLES: usize = 2;
 
@@ -1608,15 +1781,23 @@ fn directional_albedo(bsdf: &crate::bsdf::Bsdf, wo: Vec3, mut rng: Rng) -> Vec3 
 }
 
 impl CacheFrame<'_> {
-    /// The filter's 1D weights over its window (`-radius..=radius`) for cells of `n` samples
-    /// on average: a box of radius `radius n^-shrink` or a Gaussian of deviation `kernel / 4
-    /// n^-shrink` (at least a tenth of a square).
-    fn weights(&self, n: f32, out: &mut [f32]) {
+    /// The filter's 1D weights over its window for cells of `n` samples on average: a box of
+    /// radius `radius n^-shrink` or a Gaussian of deviation `kernel / 4 n^-shrink` (at least a
+    /// tenth of a square) over two deviations each side; at most `kernel` wide.
+    fn weights<'w>(&self, n: f32, out: &'w mut [f32; MAX_KERNEL as usize]) -> &'w [f32] {
         let radius = (self.cfg.kernel / 2) as i32;
         let narrow = n.max(1.0).powf(-self.cfg.shrink);
         let sigma = (self.cfg.kernel as f32 / 4.0 * narrow).max(0.1);
         let reach = radius as f32 * narrow + 0.5;
-        for (o, d) in out.iter_mut().zip(-radius..=radius) {
+        // The window's half-width narrows with it (the Gaussian's stays two deviations; the
+        // box's is its reach), so that the blocks past it are not read.
+        let half = match self.cfg.filter {
+            CacheFilter::Gaussian | CacheFilter::Linear => (2.0 * sigma).ceil() as i32,
+            _ => (reach.max(1.0) - 1e-3).floor() as i32,
+        }
+        .clamp(0, radius);
+        let out = &mut out[..(2 * half + 1) as usize];
+        for (o, d) in out.iter_mut().zip(-half..=half) {
             *o = match self.cfg.filter {
                 CacheFilter::Gaussian | CacheFilter::Linear => {
                     (-(d * d) as f32 / (2.0 * sigma * sigma)).exp()
@@ -1624,6 +1805,7 @@ impl CacheFrame<'_> {
                 _ => f32::from((d.abs() as f32) < reach.max(1.0)),
             };
         }
+        out
     }
 }
 

@@ -830,3 +830,39 @@ fn choose_sample_point_and_evaluate_agree_with_sample() {
     };
     assert!(lights.evaluate(Vec3::ZERO, &beyond).is_none());
 }
+
+/// What a white Lambertian surface lit directly can reflect: a uniform sky of luminance L gives
+/// an irradiance of at most 4 pi L over the whole sphere (pi L over a hemisphere), so the bound
+/// is 4 L; an emissive triangle adds its own luminance; a point light has none.
+#[test]
+fn the_reflected_bound_is_the_environments_irradiance_over_pi_and_the_brightest_emitter() {
+    let sky = Vec3::new(1.0, 2.0, 3.0);
+    let l = pathlight_core::color::luminance(sky);
+    let scene = Scene {
+        environment: Some(Environment::constant(sky)),
+        ..Scene::default()
+    };
+    let bound = Lights::new(&scene, LightSelection::Power).reflected_bound();
+    assert!(
+        (bound - 4.0 * l).abs() < 1e-3 * l,
+        "{bound} against {}",
+        4.0 * l
+    );
+    let emission = Vec3::new(5.0, 4.0, 2.0);
+    let mut lit = Scene {
+        materials: vec![emissive_material(emission, false)],
+        meshes: vec![mesh(DOWN.to_vec(), vec![[0, 1, 2]], 0)],
+        instances: vec![instance(0, Mat4::IDENTITY)],
+        ..scene
+    };
+    lit.collect_emissive_triangles();
+    let bound = Lights::new(&lit, LightSelection::Power).reflected_bound();
+    let want = 4.0 * l + pathlight_core::color::luminance(emission);
+    assert!((bound - want).abs() < 1e-3 * want, "{bound} against {want}");
+    let point = only_light(punctual(PunctualKind::Point, Vec3::Y, Vec3::NEG_Y, 1.0));
+    assert_eq!(point.reflected_bound(), f32::INFINITY);
+    assert_eq!(
+        Lights::new(&Scene::default(), LightSelection::Power).reflected_bound(),
+        0.0
+    );
+}
