@@ -344,6 +344,8 @@ fn a_small_cache_evicts_but_never_mixes_cells() {
     let mut small = cached(&base, CacheFilter::None, CachedTerms::All);
     small.frame.texture_cache.budget_mb = 1.0;
     small.frame.texture_cache.lod_bias = -2.0;
+    // (The cells shaded once each frame: young cells' samples would count apart.)
+    small.frame.texture_cache.fresh_spp = 1;
     let mut large = small.clone();
     large.frame.texture_cache.budget_mb = 256.0;
     let (a, ra, _) = run(&world, &small, 6, false);

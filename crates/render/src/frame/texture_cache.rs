@@ -256,7 +256,7 @@ pub struct TextureCacheConfig {
     /// a moving camera's error. 1: as every pixel (not in the paper).
     pub edge_spp: u32,
     /// With `temporal = "mean"`: the samples a young cell is brought up to after the frame's
-    /// lighting pass (1: none, as the paper; not in the paper). The blocks shaded this frame
+    /// lighting pass (16; 1: none, as the paper; not in the paper). The blocks shaded this frame
     /// whose cells hold fewer are shaded again up to this count, the youngest first, within
     /// `fresh_budget`; the frames that follow read them: a camera's first frames and the
     /// surfaces it turns toward are not a single path's noise for long, and a cell seen once
@@ -270,7 +270,7 @@ pub struct TextureCacheConfig {
     /// this multiple of the most a white Lambertian surface lit directly by the scene's lights
     /// can reflect ([`crate::light::Lights::reflected_bound`]): with two bounces, what exceeds
     /// it came off a glossy surface (a caustic), a rare path that a cell would keep for many
-    /// frames and its filter spread (0: no clamp, as the paper; not in the paper).
+    /// frames and its filter spread (1; 0: no clamp, as the paper; not in the paper).
     pub clamp: f32,
 }
 
@@ -292,9 +292,9 @@ impl Default for TextureCacheConfig {
             interpolate: true,
             min_roughness: 0.3,
             edge_spp: 1,
-            fresh_spp: 1,
+            fresh_spp: 16,
             fresh_budget: 0.5,
-            clamp: 0.0,
+            clamp: 1.0,
         }
     }
 }
