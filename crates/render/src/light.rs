@@ -169,6 +169,8 @@ struct EnvironmentLight {
     env: Environment,
     /// `None` when every texel is black (the light is then never selected).
     distribution: Option<Distribution2D>,
+    /// Its luminance over the whole sphere (the most irradiance it gives a surface).
+    integral: f32,
 }
 
 /// Every light of a scene, ready to sample.
@@ -425,6 +427,7 @@ impl Lights {
             EnvironmentLight {
                 env: env.clone(),
                 distribution,
+                integral: integral as f32,
             }
         });
 
@@ -761,9 +764,8 @@ impl Lights {
         if !self.punctual.is_empty() {
             return f32::INFINITY;
         }
-        let environment = self.environment.as_ref().map_or(0.0, |e| {
-            environment_weights(&e.env, |_| true).2 as f32 / std::f32::consts::PI
-        });
+        let environment =
+            (self.environment.as_ref()).map_or(0.0, |e| e.integral / std::f32::consts::PI);
         // (An emissive texture scales the factor by at most 1.)
         let emitters = (self.emitters.iter())
             .map(|e| weight(e.emissive))

@@ -1402,51 +1402,43 @@ impl CacheFrame<'_> {
         let (table, frame) = (&self.cache.samples, self.cache.frame);
         // (A block's words, a cell's.)
         let (words, stride) = (table.stride, 1 + self.cfg.channels());
-        let target = self.cfg.fresh_spp as f32;
-        // Each block's data, while its slot still holds it as shaded this frame.
-        let data = |&(b, i): &(Block, usize)| {
-            let s = table.states[i].load(Ordering::Acquire);
-            (s == b.key() | READY && table.frames[i].load(Ordering::Acquire) == frame).then(|| {
+        // Each block's data, read once, while its slot still holds it as shaded this frame
+        // (nothing else writes the table until the next frame).
+        let mut order: Vec<(f32, u64, usize, [f32; CELLS * (1 + CHANNELS)])> = (young.iter())
+            .enumerate()
+            .filter(|(_, &(b, i))| {
+                table.states[i].load(Ordering::Acquire) == b.key() | READY
+                    && table.frames[i].load(Ordering::Acquire) == frame
+            })
+            .map(|(k, &(b, i))| {
                 let mut d = [0.0f32; CELLS * (1 + CHANNELS)];
                 table.read(i, &mut d[..words]);
-                d
+                (block_mean(&b, &d, stride), b.key(), k, d)
             })
-        };
-        let mut order: Vec<(f32, u64, usize)> = young
-            .iter()
-            .enumerate()
-            .filter_map(|(k, y)| data(y).map(|d| (block_mean(&y.0, &d, stride), y.0.key(), k)))
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let budget = match self.cache.cold {
             true => u64::MAX,
             false => (self.cfg.fresh_budget as f64 * pixels as f64) as u64,
         };
+        let target = self.cfg.fresh_spp as f32;
         let mut spent = 0u64;
-        let mut chosen = Vec::new();
-        for &(mean, _, k) in &order {
+        order.retain(|&(mean, _, k, _)| {
             let cells = (0..CELLS).filter(|&c| young[k].0.cell(c).is_some()).count();
             let cost = ((target - mean).max(0.0) * cells as f32).ceil() as u64;
             // (One that does not fit waits; a smaller one may.)
-            if spent.saturating_add(cost) > budget {
-                continue;
-            }
-            spent += cost;
-            chosen.push(young[k]);
-        }
-        let rays = chosen
-            .par_iter()
-            .map(|y| {
-                let Some(mut d) = data(y) else { return 0 };
+            let fits = spent.saturating_add(cost) <= budget;
+            spent += if fits { cost } else { 0 };
+            fits
+        });
+        let rays = order
+            .par_iter_mut()
+            .map(|(_, _, k, d)| {
+                let (block, slot) = young[*k];
                 let mut work = Work { rays: 0, cells: 0 };
-                self.shade(
-                    tracer,
-                    &y.0,
-                    &mut d[..words],
-                    &mut work,
-                    Some(self.cfg.fresh_spp),
-                );
-                table.write(y.1, &d[..words]);
+                let fresh = Some(self.cfg.fresh_spp);
+                self.shade(tracer, &block, &mut d[..words], &mut work, fresh);
+                table.write(slot, &d[..words]);
                 let topped = &self.cache.counters.topped_up;
                 topped.fetch_add(work.cells as u64, Ordering::Relaxed);
                 work.rays
