@@ -180,6 +180,10 @@ pub struct FilterConfig {
     /// the blend with the clamped history (0.3, chosen for SVGF's output; higher trails less
     /// behind a moving camera and smooths less).
     pub taa_alpha: f32,
+    /// Temporal antialiasing: the half-width of the box the history is clamped to, in standard
+    /// deviations of this frame's 3x3 neighbourhood (0.5, chosen for SVGF's output; wider
+    /// keeps more of the history: smoother, and slower to follow a change).
+    pub taa_gamma: f32,
     /// SVGF: converge while the camera is still (not in the paper): a pixel whose motion
     /// vector is 0 takes each frame into a plain mean of its history instead of at a weight of
     /// 0.2, and its luminance test narrows with the mean's noise, so a still view converges
@@ -289,6 +293,7 @@ impl Default for FilterConfig {
             svgf_normal_width: 16.0,
             svgf_taa: true,
             taa_alpha: crate::taa::ALPHA,
+            taa_gamma: crate::taa::GAMMA,
             svgf_converge: true,
             svgf_still_handover: 0,
             sigma_direct: 1.25,
@@ -359,6 +364,9 @@ impl FilterConfig {
         }
         if !(self.taa_alpha > 0.0 && self.taa_alpha <= 1.0) {
             return FilterError::parameter("frame.filter.taa_alpha", self.taa_alpha, "in (0, 1]");
+        }
+        if !(self.taa_gamma > 0.0 && self.taa_gamma <= 100.0) {
+            return FilterError::parameter("frame.filter.taa_gamma", self.taa_gamma, "in (0, 100]");
         }
         if !(self.sigma_normal_lobe.is_finite() && self.sigma_normal_lobe >= 0.0) {
             return FilterError::parameter(
@@ -431,6 +439,7 @@ impl FilterConfig {
             normal_width: self.svgf_normal_width,
             taa: self.svgf_taa,
             taa_alpha: self.taa_alpha,
+            taa_gamma: self.taa_gamma,
             converge: self.svgf_converge,
         }
     }
@@ -476,6 +485,10 @@ mod tests {
             ("atrous_kernel", "4"),
             ("rpf_boxes", "[55, 34]"),
             ("rpf_noise", "0.0"),
+            ("taa_alpha", "0.0"),
+            ("taa_gamma", "0.0"),
+            ("taa_gamma", "nan"),
+            ("taa_gamma", "inf"),
         ] {
             let c: FilterConfig = toml::from_str(&format!("{field} = {value}")).unwrap();
             let e = c.validate().unwrap_err().to_string();

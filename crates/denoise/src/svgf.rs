@@ -124,6 +124,8 @@ pub struct SvgfParams {
     pub taa: bool,
     /// This frame's weight in the temporal antialiasing's blend ([`crate::taa::Taa::set_alpha`]).
     pub taa_alpha: f32,
+    /// The temporal antialiasing's box half-width ([`crate::taa::Taa::set_gamma`]).
+    pub taa_gamma: f32,
     /// Converge while the camera is still (not in the paper): a pixel that has not moved
     /// (its motion vector 0) blends its history as a plain mean of the frames it has seen
     /// instead of at `alpha = 0.2`, and its luminance test narrows as the mean's noise falls
@@ -169,6 +171,7 @@ impl Default for SvgfParams {
             normal_width: 16.0,
             taa: false,
             taa_alpha: crate::taa::ALPHA,
+            taa_gamma: crate::taa::GAMMA,
             converge: false,
         }
     }
@@ -258,6 +261,7 @@ impl Svgf {
             normal_width,
             taa,
             taa_alpha,
+            taa_gamma,
             converge,
         } = *p;
         p.validate()?;
@@ -384,6 +388,7 @@ impl Svgf {
         }
         if taa {
             self.taa.set_alpha(taa_alpha);
+            self.taa.set_gamma(taa_gamma);
             self.taa.apply(out, f.motion, f.width, f.height);
         } else {
             self.taa.reset();

@@ -52,8 +52,8 @@ fn pitch(width: usize) -> usize {
 /// the garden among 0.1, 0.2 and 0.3, BENCHMARKS.md).
 pub const ALPHA: f32 = 0.3;
 /// The history is clamped to the neighbourhood's mean plus and minus `GAMMA` standard
-/// deviations (chosen among 0.35, 0.5, 0.75 and 1).
-const GAMMA: f32 = 0.5;
+/// deviations (chosen for SVGF's output among 0.35, 0.5, 0.75 and 1).
+pub const GAMMA: f32 = 0.5;
 
 /// The last output, kept across frames, and scratch.
 #[derive(Default)]
@@ -76,6 +76,8 @@ pub struct Taa {
     isa: Isa,
     /// This frame's weight in the blend, if not [`ALPHA`].
     alpha: Option<f32>,
+    /// The box's half-width in standard deviations, if not [`GAMMA`].
+    gamma: Option<f32>,
 }
 
 impl Taa {
@@ -88,6 +90,13 @@ impl Taa {
     /// output: a higher weight trails less behind a moving camera and smooths less).
     pub fn set_alpha(&mut self, alpha: f32) {
         self.alpha = Some(alpha);
+    }
+
+    /// The clamping box's half-width in standard deviations of the neighbourhood, > 0 (the
+    /// default, 0.5, was chosen for SVGF's output: a wider box keeps more of the history,
+    /// smoothing more and trailing more behind a change).
+    pub fn set_gamma(&mut self, gamma: f32) {
+        self.gamma = Some(gamma);
     }
 
     /// Blends in scalar code instead of lanes (the same arithmetic; for tests).
@@ -162,6 +171,7 @@ impl Taa {
         let (lanes, isa) = (!self.scalar && n < 1 << 24, self.isa);
         let size = (width, height);
         let alpha = self.alpha.unwrap_or(ALPHA);
+        let gamma = self.gamma.unwrap_or(GAMMA);
         // Each row's output in place of its input (a pixel reads only its own value; its
         // neighbourhood is in `rows`), and kept for the next frame.
         image
@@ -178,6 +188,7 @@ impl Taa {
                         size,
                         y,
                         alpha,
+                        gamma,
                         out,
                     };
                     dispatch(isa, ByGroups(b));
@@ -194,7 +205,7 @@ impl Taa {
                             &sums,
                             history,
                             motion[y * width + x],
-                            (size, alpha),
+                            (size, alpha, gamma),
                             (x, y),
                         );
                     }
@@ -223,7 +234,7 @@ fn pixel(
     sums: &[f32; 7],
     history: &[f32],
     motion: Vec2,
-    (size, alpha): ((usize, usize), f32),
+    (size, alpha, gamma): ((usize, usize), f32, f32),
     at: (usize, usize),
 ) -> Vec3 {
     if !c.is_finite() {
@@ -240,7 +251,7 @@ fn pixel(
     let c = ycocg(compress(c));
     // The box stretched to hold this frame's value (a pixel beside an edge is not pulled
     // towards its neighbourhood's mean).
-    let (low, high) = (mean - GAMMA * sigma, mean + GAMMA * sigma);
+    let (low, high) = (mean - gamma * sigma, mean + gamma * sigma);
     let clamped = ycocg(compress(h)).clamp(low.min(c), high.max(c));
     // (A box's corner in YCoCg may lie a little outside the RGB cube.)
     expand(rgb(clamped + (c - clamped) * alpha).max(Vec3::ZERO))
@@ -269,6 +280,7 @@ struct Blend<'a> {
     size: (usize, usize),
     y: usize,
     alpha: f32,
+    gamma: f32,
     out: &'a mut [Vec3],
 }
 
@@ -347,7 +359,10 @@ impl Groups for Blend<'_> {
             let mean = sums[k] * inv;
             let square = sums[3 + k] * inv;
             let sigma = max(square - mean * mean, zero).sqrt();
-            let (low, high) = (mean - splat(GAMMA) * sigma, mean + splat(GAMMA) * sigma);
+            let (low, high) = (
+                mean - splat(self.gamma) * sigma,
+                mean + splat(self.gamma) * sigma,
+            );
             let clamped = min(max(past[k], min(low, now[k])), max(high, now[k]));
             blend[k] = clamped + (now[k] - clamped) * splat(self.alpha);
         }
@@ -480,13 +495,10 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_point_sampled_edge_settles_at_its_coverage() {
-        // An edge through column 12 that each frame's sample sees at a random place of the
-        // pixel (a jittered sample): column 12 is 0.2 or 0.1 at random, half the time each (dim
-        // enough that the compression hardly weighs). Its output settles near the pixel's
-        // mean and flickers less than its input.
-        let mut taa = Taa::default();
+    /// Column 12's input and output over 60 frames of an edge through it that each frame's
+    /// sample sees at a random place of the pixel (a jittered sample): 0.2 or 0.1 at random,
+    /// half the time each (dim enough that the compression hardly weighs).
+    fn point_sampled_edge(taa: &mut Taa) -> (Vec<f32>, Vec<f32>) {
         let mut rng = Rng::new(7, 0);
         let (mut outs, mut ins) = (Vec::new(), Vec::new());
         for _ in 0..60 {
@@ -499,15 +511,40 @@ mod tests {
                 })
                 .collect();
             ins.push(image[8 * W + 12].x);
-            outs.push(run(&mut taa, &image, Vec2::ZERO)[8 * W + 12].x);
+            outs.push(run(taa, &image, Vec2::ZERO)[8 * W + 12].x);
         }
+        (ins, outs)
+    }
+
+    fn flicker(v: &[f32]) -> f32 {
+        v.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>()
+    }
+
+    #[test]
+    fn a_point_sampled_edge_settles_at_its_coverage() {
+        // The edge's output settles near the pixel's mean and flickers less than its input.
+        let (ins, outs) = point_sampled_edge(&mut Taa::default());
         // (This seed's draws hit 20 times in 60: the input's own mean is the coverage seen.)
         let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
         let (mi, mo) = (mean(&ins[20..]), mean(&outs[20..]));
         assert!((mo - mi).abs() < 0.01, "{mo} against {mi}");
-        let flicker = |v: &[f32]| v.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>();
         let (fi, fo) = (flicker(&ins[20..]), flicker(&outs[20..]));
         assert!(fo < 0.5 * fi, "flicker {fo} against {fi}");
+    }
+
+    #[test]
+    fn a_wider_box_keeps_more_of_the_history() {
+        // The same edge: its column's values lie outside the box of a narrow `gamma` more
+        // often, so a wider box blends more of the history (less flicker), and both settle
+        // near the same mean.
+        let mut wide = Taa::default();
+        wide.set_gamma(2.0);
+        let (_, narrow) = point_sampled_edge(&mut Taa::default());
+        let (_, wide) = point_sampled_edge(&mut wide);
+        let (fn_, fw) = (flicker(&narrow[20..]), flicker(&wide[20..]));
+        assert!(fw < 0.8 * fn_, "flicker {fw} (gamma 2) against {fn_} (0.5)");
+        let mean = |v: &[f32]| v[20..].iter().sum::<f32>() / 40.0;
+        assert!((mean(&wide) - mean(&narrow)).abs() < 0.01);
     }
 
     #[test]
@@ -565,6 +602,11 @@ mod tests {
             let (mut fast, mut slow) = (Taa::default(), Taa::default());
             fast.set_lanes(lanes);
             slow.set_scalar(true);
+            // (A box other than the default's in one of the runs.)
+            if lanes == "avx2" {
+                fast.set_gamma(1.7);
+                slow.set_gamma(1.7);
+            }
             for k in 0..4 {
                 let (image, motion) = frame(k);
                 let (mut a, mut b) = (image.clone(), image);

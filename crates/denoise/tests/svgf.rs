@@ -523,6 +523,7 @@ fn the_vectorised_passes_agree_with_the_scalar_ones() {
             normal_width,
             taa: false,
             taa_alpha: 0.3,
+            taa_gamma: 0.5,
             converge,
         };
         let (mut fast, mut slow) = (Svgf::new(), Svgf::new());

@@ -497,6 +497,11 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         |ui| {
             ui.add(egui::Slider::new(&mut f.taa_alpha, 0.05..=1.0).text("antialiasing weight"))
                 .on_hover_text("This frame's weight in the temporal antialiasing's blend");
+            ui.add(egui::Slider::new(&mut f.taa_gamma, 0.1..=4.0).text("antialiasing box"))
+                .on_hover_text(
+                    "The box the history is clamped to, in standard deviations of the \
+                     neighbourhood: wider keeps more history",
+                );
         },
     );
     ui.add_enabled_ui(f.method == Method::Svgf, |ui| {

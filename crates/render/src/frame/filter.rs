@@ -437,6 +437,7 @@ impl Filter {
             Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
             Method::Taa => {
                 self.taa.set_alpha(config.taa_alpha);
+                self.taa.set_gamma(config.taa_gamma);
                 self.run_taa(history, gbuffer);
                 Ok(())
             }

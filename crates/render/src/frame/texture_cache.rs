@@ -979,10 +979,9 @@ impl CacheFrame<'_> {
             return (LightSample::default(), 0);
         }
         let film_lens = tracer.film_lens(x, y, index);
-        let albedo_rng = Rng::new(hash(&[self.seed, x as u64, y as u64]), index as u64);
         // The first sample through the cache, or (it bypasses) the plain lighting's.
         let (mut stats, bounce, mut rays) =
-            match self.sample(tracer, film_lens, hit, direct, albedo_rng, record) {
+            match self.sample(tracer, film_lens, hit, direct, record) {
                 Some((d, i, r, bounce)) => (PixelStats::one(d, i), bounce, r),
                 None => {
                     let (l, r) = lighting::light(tracer, x, y, hit, index, 1, along, direct);
@@ -1026,15 +1025,7 @@ impl CacheFrame<'_> {
             rng,
         };
         let mut scratch = CachePixel::default();
-        let albedo_rng = Rng::new(hash(&[self.seed, x as u64, y as u64]), index as u64);
-        match self.sample(
-            tracer,
-            (c.film, c.lens),
-            &hit,
-            None,
-            albedo_rng,
-            &mut scratch,
-        ) {
+        match self.sample(tracer, (c.film, c.lens), &hit, None, &mut scratch) {
             Some((d, i, r, _)) => (d, i, r + rays as u64),
             None => {
                 let s =
@@ -1053,7 +1044,6 @@ impl CacheFrame<'_> {
         (film, lens): (glam::Vec2, glam::Vec2),
         hit: &PrimaryHit,
         direct: Option<Vec3>,
-        albedo_rng: Rng,
         record: &mut CachePixel,
     ) -> Option<(Vec3, Vec3, u64, crate::path::Bounce)> {
         let v = hit.first.as_ref()?;
@@ -1112,7 +1102,7 @@ impl CacheFrame<'_> {
             true => self.interpolated(tracer, &cell, v.surface.bary, &mut light, &mut work),
             false => self.lookup(tracer, &cell, &mut light, &mut work),
         };
-        let albedo = directional_albedo(&bsdf, v.surface.to_local(-hit.ray.direction), albedo_rng);
+        let albedo = directional_albedo(&bsdf, v.surface.to_local(-hit.ray.direction));
         let indirect = albedo * Vec3::from_slice(&light[self.cfg.channels() - 3..]);
         // The direct light: the pixel's own (`indirect`: traced above), the reservoir's
         // (seed 004: every light's, the cache's unused), or the cache's (and the pixel's sun
@@ -1758,17 +1748,19 @@ fn block_mean(block: &Block, data: &[f32], stride: usize) -> f32 {
 const ALBEDO_SAMPLES: usize = 2;
 
 /// The BSDF's directional albedo at `wo` ([`crate::bsdf::Bsdf::directional_albedo`], its
-/// specular lobe by [`ALBEDO_SAMPLES`] stratified samples shifted by `rng`'s stream): what the
-/// pixel multiplies the cached light by. [`crate::bsdf::Bsdf::albedo`], Fresnel at the macro
-/// normal without masking, overestimates rough specular layers at grazing angles (by 12% on
-/// the interior's walls); a Monte Carlo estimate over the whole BSDF's samples is noisy, and
-/// its noise is the cached pixel's.
-fn directional_albedo(bsdf: &crate::bsdf::Bsdf, wo: Vec3, mut rng: Rng) -> Vec3 {
-    let shift = glam::Vec2::new(rng.next_f32(), rng.next_f32());
-    let u: [glam::Vec2; ALBEDO_SAMPLES] = std::array::from_fn(|k| {
-        let t = (k as f32 + 0.5) / ALBEDO_SAMPLES as f32;
-        (glam::Vec2::new(t, (k as f32 * 0.618_034).fract()) + shift).fract()
-    });
+/// specular lobe by [`ALBEDO_SAMPLES`] samples at fixed places, `(k + 1/2) / n` in both
+/// dimensions): what the pixel multiplies the cached light by. [`crate::bsdf::Bsdf::albedo`],
+/// Fresnel at the macro normal without masking, overestimates rough specular layers at grazing
+/// angles (by 12% on the interior's walls); a Monte Carlo estimate is noisy, and its noise is
+/// the cached pixel's: until session 31 the samples' places were shifted at random per pixel
+/// and frame, which made the walls' pixels change from frame to frame at a still view (in
+/// sRGB, each frame on its own, a standard deviation of 0.0048 against 0.0018 with the fixed
+/// places); the fixed rule's error is a bias that varies smoothly with `wo` (along the
+/// interior's orbit relMSE 0.0898 -> 0.0885, flicker 0.0091 -> 0.0086, FLIP 0.0690 -> 0.0696;
+/// BENCHMARKS.md, "Seed 002 / Where the flicker is").
+fn directional_albedo(bsdf: &crate::bsdf::Bsdf, wo: Vec3) -> Vec3 {
+    let u: [glam::Vec2; ALBEDO_SAMPLES] =
+        std::array::from_fn(|k| glam::Vec2::splat((k as f32 + 0.5) / ALBEDO_SAMPLES as f32));
     bsdf.directional_albedo(wo, &u)
 }
 
