@@ -30,7 +30,10 @@
 //! itself by the sun (next event estimation at its own first hit, one shadow ray): the sun's
 //! shadows stay sharp where a texel would spread them over its neighbours (the error that
 //! dominated `"all"` along the interior's orbit: bright texels leaking into shade, which
-//! relMSE weighs most), for a shadow ray per pixel; without a sun, as `"all"`. With ReSTIR
+//! relMSE weighs most), for a shadow ray per pixel; without a sun, as `"all"`. The pixel's
+//! sun is a ratio estimator (`sun_ratio`): the sun's unshadowed irradiance of its normal,
+//! summed over the sun's texels, times the BSDF and the visibility toward the one sample, so
+//! that a fully lit surface's sun does not change from frame to frame. With ReSTIR
 //! (seed 004), a cached pixel's direct light is its reservoir's whatever the cache holds.
 //! A pixel on a silhouette or a crease (`edge_spp`, [`GBuffer::on_edge`]) takes more camera
 //! samples, each looking its light up: a single sample's coverage of an edge is what the
@@ -272,6 +275,12 @@ pub struct TextureCacheConfig {
     /// it came off a glossy surface (a caustic), a rare path that a cell would keep for many
     /// frames and its filter spread (1; 0: no clamp, as the paper; not in the paper).
     pub clamp: f32,
+    /// With `terms = "sky"`: each pixel's sun by a ratio estimator (Heitz et al. 2018): the
+    /// sun's unshadowed irradiance of its normal, worked out over the sun's texels
+    /// ([`SunAndSky::sun_irradiance`]), times the BSDF and the visibility toward its one
+    /// sample, so that the sample no longer decides the sun's colour or its cosine, only its
+    /// shadow (true; false: the sample's own estimate, as before; not in the paper).
+    pub sun_ratio: bool,
 }
 
 impl Default for TextureCacheConfig {
@@ -295,6 +304,7 @@ impl Default for TextureCacheConfig {
             fresh_spp: 16,
             fresh_budget: 0.5,
             clamp: 1.0,
+            sun_ratio: true,
         }
     }
 }
@@ -1153,7 +1163,23 @@ impl CacheFrame<'_> {
             return Vec3::ZERO;
         };
         let mut r = 0;
-        let l = tracer.light_alone(v, bsdf, -hit.ray.direction, &ls, &mut r);
+        let wo = -hit.ray.direction;
+        let l = match self.cfg.sun_ratio {
+            false => tracer.light_alone(v, bsdf, wo, &ls, &mut r),
+            true => {
+                // The ratio estimator: the sun's exact unshadowed irradiance of the side of
+                // the surface the sample lights, times the BSDF (without its cosine, which the
+                // irradiance holds) and the visibility toward the sample.
+                let toward = (&v.surface, &v.shading, bsdf, wo, v.surface.to_local(wo));
+                tracer
+                    .toward_light(toward, &ls, &mut r)
+                    .map_or(Vec3::ZERO, |(f_cos, tr, _)| {
+                        let cos = ls.wi.dot(v.surface.ns);
+                        let n = v.surface.ns * cos.signum();
+                        self.sun.sun_irradiance(n) * f_cos * (tr / cos.abs())
+                    })
+            }
+        };
         *rays += r as u64;
         l
     }

@@ -9,6 +9,12 @@
 //! partition the texels, so the sun's and the sky's light add up to the environment's.
 //! [`SunAndSky::sample_with`] samples the scene's other lights with either part in the
 //! environment's place.
+//!
+//! [`SunAndSky::sun_irradiance`] works out the sun's unshadowed irradiance of a normal over
+//! its texels, per channel: with it a caller can light a point by the sun with a ratio
+//! estimator (Heitz et al. 2018, "Combining analytic direct illumination and stochastic
+//! shadows"), whose one sample decides only the visibility and the BSDF's variation across
+//! the sun, not the sun's colour or its cosine.
 
 use glam::{Vec2, Vec3};
 
@@ -39,6 +45,71 @@ pub struct SunAndSky {
     pub sun_texels: usize,
     /// The sun's share of the environment's power (luminance over the sphere).
     pub sun_share: f32,
+    /// The sun's texels' radiance-weighted directions ([`Self::sun_irradiance`]).
+    moments: SunMoments,
+}
+
+/// The sun's texels as sums of their directions weighted by their radiance and solid angle:
+/// what the sun's irradiance of a normal needs.
+#[derive(Debug, Clone, Default)]
+struct SunMoments {
+    /// Per channel (r, g, b), the sum over the sun's texels of `L_c w dOmega`: channel c's
+    /// irradiance of a unit normal `n` that sees every texel is `n . sum[c]`.
+    sum: [Vec3; 3],
+    /// Every texel's direction `w` (its centre's) and `L dOmega`, for a normal that sees only
+    /// part of the sun.
+    texels: Vec<(Vec3, Vec3)>,
+    /// The texels' luminance-weighted mean direction.
+    axis: Vec3,
+    /// The sine of the widest angle between `axis` and a texel's direction: a normal `n` with
+    /// `n . axis > sin` sees every texel (1: no texel, or none within 90 degrees of `axis`).
+    sin_spread: f32,
+}
+
+impl SunMoments {
+    /// The moments of the texels `sun` accepts (by index, row-major) of `env`.
+    fn new(env: &pathlight_scene::Environment, sun: &[bool]) -> Self {
+        let (w, h) = (env.width as usize, env.height as usize);
+        let mut m = Self::default();
+        let mut axis = Vec3::ZERO;
+        for i in (0..sun.len()).filter(|&i| sun[i]) {
+            let (x, y) = (i % w, i / w);
+            let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+            let dir = env.uv_to_direction(uv);
+            let l = (env.texels[i] * env.intensity).max(Vec3::ZERO) * texel_solid_angle(y, w, h);
+            if !l.is_finite() {
+                continue;
+            }
+            for c in 0..3 {
+                m.sum[c] += dir * l[c];
+            }
+            axis += dir * weight(l);
+            m.texels.push((dir, l));
+        }
+        m.axis = axis.normalize_or_zero();
+        let min_cos = m
+            .texels
+            .iter()
+            .map(|(d, _)| d.dot(m.axis))
+            .fold(1.0f32, f32::min);
+        m.sin_spread = match min_cos > 0.0 && m.axis != Vec3::ZERO {
+            true => (1.0 - min_cos * min_cos).max(0.0).sqrt(),
+            false => 1.0,
+        };
+        m
+    }
+
+    /// Channel by channel, the irradiance of unit normal `n` by the texels, each as a point
+    /// at its centre: `sum_t L_t max(0, n . w_t) dOmega_t`.
+    fn irradiance(&self, n: Vec3) -> Vec3 {
+        if n.dot(self.axis) > self.sin_spread {
+            return Vec3::new(n.dot(self.sum[0]), n.dot(self.sum[1]), n.dot(self.sum[2]));
+        }
+        self.texels
+            .iter()
+            .map(|&(d, l)| l * n.dot(d).max(0.0))
+            .sum()
+    }
 }
 
 impl SunAndSky {
@@ -74,6 +145,7 @@ impl SunAndSky {
             sun: Distribution2D::new(&sun_weights, w, rows),
             sky: Distribution2D::new(&sky_weights, w, rows),
             sun_texels: sun.iter().filter(|&&s| s).count(),
+            moments: SunMoments::new(env, &sun),
             sun_share: if total > 0.0 {
                 (sun_power / total) as f32
             } else {
@@ -103,6 +175,15 @@ impl SunAndSky {
         }
         let (ls, _) = lights.evaluate_selected(p, &lights.sample_point(index, u)?, select)?;
         Some(ls)
+    }
+
+    /// The irradiance of a surface of unit normal `n` by the sun alone, unshadowed, per
+    /// channel: its texels' radiance times their cosine (0 below the horizon) and solid angle,
+    /// summed (exactly `n . S`, `S` the texels' radiance-weighted directions, where `n` sees
+    /// the whole sun; texel by texel where the sun straddles `n`'s horizon). Zero without a
+    /// sun.
+    pub fn sun_irradiance(&self, n: Vec3) -> Vec3 {
+        self.moments.irradiance(n)
     }
 
     /// Whether the environment has a sun.
@@ -223,6 +304,57 @@ mod tests {
             let sky = split.sample(&lights, Part::Sky, u).unwrap();
             assert!(sky.radiance.x < 1.0);
         }
+    }
+
+    /// The sun's irradiance of a normal, by brute force over the map (16 directions per
+    /// texel, each with its own cosine), for normals that see all of the sun, part of it and
+    /// none of it.
+    #[test]
+    fn the_suns_irradiance_matches_brute_force() {
+        let env = sunny(256, 128);
+        let split = SunAndSky::new(&lights_of(env.clone()));
+        let (w, h) = (env.width as usize, env.height as usize);
+        let brute = |n: Vec3| {
+            let sub = 4;
+            let mut e = glam::DVec3::ZERO;
+            for y in 0..h * sub {
+                for x in 0..w * sub {
+                    let uv = Vec2::new(
+                        (x as f32 + 0.5) / (w * sub) as f32,
+                        (y as f32 + 0.5) / (h * sub) as f32,
+                    );
+                    let texel = (uv.y * h as f32) as usize * w + (uv.x * w as f32) as usize;
+                    if env.texels[texel].x < 1000.0 {
+                        continue;
+                    }
+                    let theta = uv.y * std::f32::consts::PI;
+                    let d_omega = (2.0 * std::f32::consts::PI / (w * sub) as f32)
+                        * (std::f32::consts::PI / (h * sub) as f32)
+                        * theta.sin();
+                    let cos = n.dot(env.uv_to_direction(uv)).max(0.0);
+                    e += (env.radiance_at_uv(uv) * cos * d_omega).as_dvec3();
+                }
+            }
+            e.as_vec3()
+        };
+        let full = brute(Vec3::Y);
+        assert!(full.y > 0.0);
+        let axis = split.moments.axis;
+        let side = axis.cross(Vec3::X).normalize();
+        for (n, what) in [
+            (Vec3::Y, "facing up"),
+            ((axis + side).normalize(), "at 45 degrees"),
+            ((side + axis * 0.01).normalize(), "at the horizon"),
+            (-axis, "facing away"),
+        ] {
+            let got = split.sun_irradiance(n);
+            let want = brute(n);
+            assert!(
+                (got - want).abs().max_element() <= 0.02 * full.y,
+                "{what}: {got} against {want} (facing up {full})"
+            );
+        }
+        assert_eq!(split.sun_irradiance(-axis), Vec3::ZERO);
     }
 
     /// A map without a concentrated bright spot (its bright texels cover a wide solid angle)
