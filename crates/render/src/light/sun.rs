@@ -243,6 +243,35 @@ mod tests {
         Lights::new(&scene, LightSelection::Power)
     }
 
+    /// The irradiance of unit normal `n`, per channel, by the sun's texels of `env` (those
+    /// over 1000 in red) or, `sun` false, by the others: the integral of `L max(0, n . w)` by
+    /// the midpoint rule on 4x4 directions per texel, each with its own cosine and solid angle
+    /// (independent of the distributions and of the texels' centres).
+    fn brute_force_irradiance(env: &Environment, n: Vec3, sun: bool) -> Vec3 {
+        let (w, h) = (env.width as usize, env.height as usize);
+        let sub = 4;
+        let mut e = glam::DVec3::ZERO;
+        for y in 0..h * sub {
+            for x in 0..w * sub {
+                let uv = Vec2::new(
+                    (x as f32 + 0.5) / (w * sub) as f32,
+                    (y as f32 + 0.5) / (h * sub) as f32,
+                );
+                let texel = (uv.y * h as f32) as usize * w + (uv.x * w as f32) as usize;
+                if (env.texels[texel].x > 1000.0) != sun {
+                    continue;
+                }
+                let theta = uv.y * std::f32::consts::PI;
+                let d_omega = (2.0 * std::f32::consts::PI / (w * sub) as f32)
+                    * (std::f32::consts::PI / (h * sub) as f32)
+                    * theta.sin();
+                let cos = n.dot(env.uv_to_direction(uv)).max(0.0);
+                e += (env.radiance_at_uv(uv) * cos * d_omega).as_dvec3();
+            }
+        }
+        e.as_vec3()
+    }
+
     /// The sun's and the sky's estimates of the irradiance of an upward-facing point add up to
     /// the environment's, found by brute force over the sphere's texels (independent of the
     /// distributions); the sun is the three bright texels.
@@ -258,29 +287,9 @@ mod tests {
             "{}",
             split.sun_share
         );
-        // Irradiance at a point facing +Y: the integral of L cos over the upper hemisphere, by
-        // summing the texels (midpoint rule on a fine grid of directions per texel).
-        let (w, h) = (env.width as usize, env.height as usize);
-        let mut exact = [0.0f64; 2];
-        let sub = 4;
-        for y in 0..h * sub {
-            for x in 0..w * sub {
-                let uv = Vec2::new(
-                    (x as f32 + 0.5) / (w * sub) as f32,
-                    (y as f32 + 0.5) / (h * sub) as f32,
-                );
-                let dir = env.uv_to_direction(uv);
-                let theta = uv.y * std::f32::consts::PI;
-                let d_omega = (2.0 * std::f32::consts::PI / (w * sub) as f32)
-                    * (std::f32::consts::PI / (h * sub) as f32)
-                    * theta.sin();
-                let cos = dir.y.max(0.0);
-                let l = env.radiance_at_uv(uv);
-                let texel = (uv.y * h as f32) as usize * w + (uv.x * w as f32) as usize;
-                let part = usize::from(env.texels[texel].x < 1000.0);
-                exact[part] += (l.y * cos * d_omega) as f64;
-            }
-        }
+        // Irradiance at a point facing +Y, of the sun's texels and of the sky's.
+        let exact =
+            [true, false].map(|sun| f64::from(brute_force_irradiance(&env, Vec3::Y, sun).y));
         for (k, part) in [Part::Sun, Part::Sky].into_iter().enumerate() {
             let n = 200_000;
             let mut rng = pathlight_core::rng::Rng::new(5, k as u64);
@@ -306,37 +315,13 @@ mod tests {
         }
     }
 
-    /// The sun's irradiance of a normal, by brute force over the map (16 directions per
-    /// texel, each with its own cosine), for normals that see all of the sun, part of it and
-    /// none of it.
+    /// The sun's irradiance of a normal against brute force over the map, for normals that
+    /// see all of the sun, part of it and none of it.
     #[test]
     fn the_suns_irradiance_matches_brute_force() {
         let env = sunny(256, 128);
         let split = SunAndSky::new(&lights_of(env.clone()));
-        let (w, h) = (env.width as usize, env.height as usize);
-        let brute = |n: Vec3| {
-            let sub = 4;
-            let mut e = glam::DVec3::ZERO;
-            for y in 0..h * sub {
-                for x in 0..w * sub {
-                    let uv = Vec2::new(
-                        (x as f32 + 0.5) / (w * sub) as f32,
-                        (y as f32 + 0.5) / (h * sub) as f32,
-                    );
-                    let texel = (uv.y * h as f32) as usize * w + (uv.x * w as f32) as usize;
-                    if env.texels[texel].x < 1000.0 {
-                        continue;
-                    }
-                    let theta = uv.y * std::f32::consts::PI;
-                    let d_omega = (2.0 * std::f32::consts::PI / (w * sub) as f32)
-                        * (std::f32::consts::PI / (h * sub) as f32)
-                        * theta.sin();
-                    let cos = n.dot(env.uv_to_direction(uv)).max(0.0);
-                    e += (env.radiance_at_uv(uv) * cos * d_omega).as_dvec3();
-                }
-            }
-            e.as_vec3()
-        };
+        let brute = |n: Vec3| brute_force_irradiance(&env, n, true);
         let full = brute(Vec3::Y);
         assert!(full.y > 0.0);
         let axis = split.moments.axis;
