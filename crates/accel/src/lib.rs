@@ -11,6 +11,7 @@ pub mod instanced;
 pub mod native;
 pub mod ray;
 pub mod rays;
+pub mod recorder;
 mod simd;
 pub mod triangle;
 

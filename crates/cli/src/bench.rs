@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
+use pathlight_accel::recorder::{Query, Recorder};
 use pathlight_accel::{Accel, Hit, NativeBvh, Ray, RayKind, RaySets, SceneTriangles};
 use rayon::prelude::*;
 use serde_json::json;
@@ -51,9 +52,15 @@ pub struct FrameArgs {
     pub threads: Option<usize>,
 
     /// Print one JSON object as the last line (`ms_per_frame`, `fps`, `mrays_per_s`,
-    /// `passes`, ...).
+    /// `passes`, `floor_ms`, `frame_over_floor`, ...).
     #[arg(long)]
     pub json: bool,
+
+    /// Skip the floor: by default the orbit is rendered a second time with every ray
+    /// recorded, and each frame's rays are traced again alone through the accelerator (by
+    /// kind: primary, closest, shadow); their median time is the frame's floor.
+    #[arg(long)]
+    pub no_floor: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -519,7 +526,6 @@ const WARM_UP_FRAMES: u32 = 2;
 
 fn run_frame(args: &FrameArgs) -> Result<()> {
     use pathlight_render::camera_path::{CameraPath, PathKind};
-    use pathlight_render::frame::Pipeline;
     use pathlight_render::{Config, World};
 
     if args.frames == 0 || args.frames > 100_000 {
@@ -550,21 +556,20 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
     };
     let views = world.path_views(&orbit);
     let mut reports = Vec::with_capacity(args.frames as usize);
-    let mut pipeline = Pipeline::new(config.clone());
-    pool.install(|| {
-        for (i, view) in views.iter().enumerate() {
-            let mut c = config.clone();
-            c.camera.look_from = view.look_from;
-            c.camera.look_at = view.look_at;
-            c.camera.up = view.up;
-            c.camera.fov_y = view.fov_y;
-            pipeline.set_config(&c);
-            let mut report = pipeline.render_frame(&world);
-            pipeline.display(&mut report);
-            if i >= WARM_UP_FRAMES as usize {
-                reports.push(report);
-            }
-        }
+    let pipeline =
+        pool.install(|| orbit_frames(&world, &config, &views, |report| reports.push(report)));
+    // The floor: the same frames again, their rays recorded, then traced alone.
+    let mut world = world;
+    let floors = (!args.no_floor).then(|| {
+        let mut floors = Vec::with_capacity(args.frames as usize);
+        pool.install(|| {
+            let tap = Recorder::install(&mut world.accel);
+            orbit_frames(&world, &config, &views, |_| {
+                let recording = tap.take();
+                floors.push(Query::ALL.map(|q| recording.replay(tap.accel(), q)));
+            });
+        });
+        Floor::of(&floors)
     });
     let summary = Summary::of(&reports, pool.current_num_threads());
     let pixels = (config.width as f64 * config.height as f64).max(1.0);
@@ -597,6 +602,9 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
                 "bytes_per_pixel": plain_bpp,
                 "technique_bytes_per_pixel": technique_bpp,
                 "samples_per_pixel": reports.iter().map(|r| r.samples as f64).sum::<f64>() / reports.len().max(1) as f64 / pixels,
+                "floor_ms": floors.as_ref().map(|f| f.ms),
+                "floor": floors.as_ref().map(Floor::by_kind_json),
+                "frame_over_floor": floors.as_ref().map(|f| ms_per_frame / f.ms),
             })
         );
     } else {
@@ -616,9 +624,74 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
             summary.mrays_per_s,
             rays as f64 / args.frames as f64 / (config.width as f64 * config.height as f64)
         );
+        if let Some(f) = &floors {
+            let kinds: Vec<String> = (Query::ALL.iter().zip(f.by_kind))
+                .map(|(q, ms)| format!("{} {ms:.2}", q.name()))
+                .collect();
+            println!(
+                "{:<12} {:>10.2}   (its rays alone: {}; frame / floor {:.2})",
+                "floor",
+                f.ms,
+                kinds.join(", "),
+                ms_per_frame / f.ms
+            );
+        }
         println!("memory: {plain_bpp:.0} bytes per pixel, {technique_bpp:.0} more for the techniques that are on");
     }
     Ok(())
+}
+
+/// Renders the frames of `views` with a new pipeline for `config`, each view a new frame;
+/// `measured` takes each report after the warm-up frames. Returns the pipeline.
+fn orbit_frames(
+    world: &pathlight_render::World,
+    config: &pathlight_render::Config,
+    views: &[pathlight_render::camera::CameraConfig],
+    mut measured: impl FnMut(pathlight_render::frame::FrameReport),
+) -> pathlight_render::frame::Pipeline {
+    let mut pipeline = pathlight_render::frame::Pipeline::new(config.clone());
+    for (i, view) in views.iter().enumerate() {
+        let mut c = config.clone();
+        c.camera.look_from = view.look_from;
+        c.camera.look_at = view.look_at;
+        c.camera.up = view.up;
+        c.camera.fov_y = view.fov_y;
+        pipeline.set_config(&c);
+        let mut report = pipeline.render_frame(world);
+        pipeline.display(&mut report);
+        if i >= WARM_UP_FRAMES as usize {
+            measured(report);
+        }
+    }
+    pipeline
+}
+
+/// A frame's floor: its rays traced alone, by kind of query (medians over the frames, in
+/// milliseconds), and the median of their sums.
+pub struct Floor {
+    pub ms: f64,
+    pub by_kind: [f64; 3],
+}
+
+impl Floor {
+    fn of(frames: &[[f64; 3]]) -> Self {
+        let mut sums: Vec<f64> = frames.iter().map(|f| f.iter().sum()).collect();
+        let by_kind = std::array::from_fn(|k| {
+            let mut v: Vec<f64> = frames.iter().map(|f| f[k]).collect();
+            median(&mut v)
+        });
+        Self {
+            ms: median(&mut sums),
+            by_kind,
+        }
+    }
+
+    fn by_kind_json(&self) -> serde_json::Value {
+        (Query::ALL.iter().zip(self.by_kind))
+            .map(|(q, ms)| (q.name().to_owned(), json!(ms)))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    }
 }
 
 /// Medians over frames.
