@@ -179,6 +179,14 @@ impl Distribution2D {
         self.height
     }
 
+    /// Heap bytes.
+    pub fn bytes(&self) -> usize {
+        4 * (self.conditional.len()
+            + self.marginal.len()
+            + self.conditional_guide.len()
+            + self.marginal_guide.len())
+    }
+
     #[inline]
     fn row(&self, y: usize) -> &[f32] {
         &self.conditional[y * (self.width + 1)..(y + 1) * (self.width + 1)]
@@ -189,6 +197,19 @@ impl Distribution2D {
     /// Inputs outside [0, 1) are clamped into it.
     #[inline]
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let ((x, y), offset, probability) = self.sample_cell(u);
+        let p = Vec2::new(
+            place(x, offset.x, self.width),
+            place(y, offset.y, self.height),
+        );
+        (p, probability * (self.width * self.height) as f32)
+    }
+
+    /// A cell (column, row), the offset in [0, 1)^2 within it at which the inversion landed,
+    /// and the probability of the cell (positive): what [`sample`](Self::sample) places as a
+    /// point. Inputs outside [0, 1) are clamped into it.
+    #[inline]
+    pub fn sample_cell(&self, u: Vec2) -> ((usize, usize), Vec2, f32) {
         let (y, py, oy) = invert(&self.marginal, &self.marginal_guide, u.y);
         let g = guide_len(self.width);
         let (x, px, ox) = invert(
@@ -196,8 +217,14 @@ impl Distribution2D {
             &self.conditional_guide[y * g..(y + 1) * g],
             u.x,
         );
-        let p = Vec2::new(place(x, ox, self.width), place(y, oy, self.height));
-        (p, px * py * (self.width * self.height) as f32)
+        ((x, y), Vec2::new(ox, oy), px * py)
+    }
+
+    /// The probability of cell (`x`, `y`): its density over the number of cells.
+    #[inline]
+    pub fn cell_probability(&self, x: usize, y: usize) -> f32 {
+        let row = self.row(y);
+        (row[x + 1] - row[x]) * (self.marginal[y + 1] - self.marginal[y])
     }
 
     /// The density at `p` with respect to area on `[0,1]^2` (points outside are clamped onto the

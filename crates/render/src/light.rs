@@ -16,14 +16,13 @@
 //! - Punctual lights: point and spot intensities are candela (W/sr): radiance term
 //!   `I / d^2`; spots use glTF's smooth falloff, directional lights give their illuminance.
 //!   glTF's range window `clamp(1 - (d/range)^4, 0, 1)^2` applies when `range` is set.
-//! - Environment: importance sampled with a [`Distribution2D`] over the lat-long texels, in
-//!   proportion to luminance * sin(theta) (texels that are exactly black get probability 0;
-//!   there is no floor). Maps under 64 texels high get several distribution rows per texel row
-//!   so the density follows sin(theta); every distribution cell lies inside one texel. The
-//!   solid-angle density is `pdf_uv / (2 pi^2 sin theta)` at `Environment::direction_to_uv`,
-//!   with the cell found by the same rounding as `Environment::radiance`'s nearest texel.
-//!   `sample` evaluates its density and radiance from the sampled direction through the same
-//!   code as `pdf_environment` and `environment_radiance`, so they agree bit for bit.
+//! - Environment: importance sampled in proportion to luminance over the sphere, texel by
+//!   texel ([`environment::EnvironmentMap`]: a block of texels by a 2D CDF, a texel in it by
+//!   16-bit cuts, a direction uniform in solid angle within the texel; texels that are exactly
+//!   black get probability 0; there is no floor). A direction's radiance and density are
+//!   those of the texel it falls in, one record read; `sample` evaluates its density and
+//!   radiance from the sampled direction through the same lookup as `pdf_environment` and
+//!   `environment_radiance`, so they agree bit for bit.
 //!
 //! Power (for [`LightSelection::Power`], as luminance), pbrt-v4's conventions: triangle
 //! `EmissiveTriangle::power` (pi * area * mean radiance, doubled when two-sided); point 4 pi I;
@@ -33,21 +32,22 @@
 //!
 //! `Lights` owns what sampling needs, as `sample` gets no scene: each emissive triangle's world
 //! corners and front normal (64 bytes), the UVs of textured emitters, clones of the textures
-//! used as emissive textures, and a clone of the environment (12 bytes per texel) with its
-//! sampling CDFs (4 bytes per texel).
+//! used as emissive textures, and the environment's texels with their densities (16 bytes per
+//! texel) and sampling tables (about 2 bytes per texel).
 
 use std::collections::HashMap;
 use std::f32::consts::PI;
 
 use glam::{Mat3, Vec2, Vec3, Vec4Swizzles};
-use pathlight_core::color::luminance;
-use pathlight_scene::{Environment, Material, PunctualKind, Scene, Texture, TextureRef};
+use pathlight_scene::{Material, PunctualKind, Scene, Texture, TextureRef};
 use serde::{Deserialize, Serialize};
 
 use crate::alias::AliasTable;
-use crate::distribution::Distribution2D;
 
+pub mod environment;
 pub mod sun;
+
+use environment::{weight, EnvironmentMap};
 #[cfg(test)]
 pub(crate) mod tests;
 
@@ -109,9 +109,6 @@ pub struct LightPoint {
     pub bary: Vec2,
 }
 
-/// Environment maps lower than this are sampled with several rows per texel row.
-const MIN_ENVIRONMENT_ROWS: usize = 64;
-
 /// "No entry" in the index tables.
 const NONE: u32 = u32::MAX;
 
@@ -164,13 +161,10 @@ enum Punctual {
     },
 }
 
+/// The environment: its map (never selected when every texel is black).
 #[derive(Debug, Clone)]
 struct EnvironmentLight {
-    env: Environment,
-    /// `None` when every texel is black (the light is then never selected).
-    distribution: Option<Distribution2D>,
-    /// Its luminance over the whole sphere (the most irradiance it gives a surface).
-    integral: f32,
+    map: EnvironmentMap,
 }
 
 /// Every light of a scene, ready to sample.
@@ -219,16 +213,6 @@ pub(crate) fn range_window(distance: f32, inv_range: f32) -> f32 {
     let x = distance * inv_range;
     let w = (1.0 - (x * x) * (x * x)).clamp(0.0, 1.0);
     w * w
-}
-
-/// Luminance of a colour as a selection weight (0 for anything negative or not finite).
-fn weight(power: Vec3) -> f32 {
-    let l = luminance(power.max(Vec3::ZERO));
-    if l.is_finite() {
-        l
-    } else {
-        0.0
-    }
 }
 
 /// The emissive texture of a material and the UVs of a triangle's corners for it.
@@ -415,20 +399,14 @@ impl Lights {
 
         // The environment.
         let environment = scene.environment.as_ref().map(|env| {
-            let (texel_weights, rows, integral) = environment_weights(env, |_| true);
-            let w = env.width as usize;
-            let distribution = Distribution2D::new(&texel_weights, w, rows);
-            let power = if distribution.is_some() {
-                disk * integral as f32
+            let map = EnvironmentMap::new(env);
+            let power = if map.is_lit() {
+                disk * map.integral as f32
             } else {
                 0.0
             };
             weights.push(if power.is_finite() { power } else { 0.0 });
-            EnvironmentLight {
-                env: env.clone(),
-                distribution,
-                integral: integral as f32,
-            }
+            EnvironmentLight { map }
         });
 
         if selection == LightSelection::Uniform {
@@ -553,10 +531,9 @@ impl Lights {
             })
         } else if index + 1 == self.count {
             let light = self.environment.as_ref()?;
-            let (uv, _) = light.distribution.as_ref()?.sample(u);
             Some(LightPoint {
                 light: index as u32,
-                point: light.env.uv_to_direction(uv),
+                point: light.map.sample(u)?,
                 bary: Vec2::ZERO,
             })
         } else {
@@ -646,9 +623,8 @@ impl Lights {
         } else if index - self.triangles.len() < self.punctual.len() {
             select
         } else {
-            self.environment.as_ref().map_or(0.0, |light| {
-                select * environment_pdf_uv(light, light.env.direction_to_uv(point.point))
-            })
+            (self.environment.as_ref())
+                .map_or(0.0, |light| select * light.map.lookup(point.point).pdf)
         }
     }
 
@@ -705,12 +681,12 @@ impl Lights {
         // The density and radiance of the direction itself, as `environment` finds them for a
         // ray that escapes that way: the same texel, bit for bit (so that the MIS weights of
         // the two strategies agree exactly).
-        let uv = light.env.direction_to_uv(wi);
+        let texel = light.map.lookup(wi);
         Some(LightSample {
             wi,
             distance: f32::INFINITY,
-            radiance: light.env.radiance_at_uv(uv),
-            pdf: select * environment_pdf_uv(light, uv),
+            radiance: texel.radiance,
+            pdf: select * texel.pdf,
             delta: false,
         })
     }
@@ -764,8 +740,7 @@ impl Lights {
         if !self.punctual.is_empty() {
             return f32::INFINITY;
         }
-        let environment =
-            (self.environment.as_ref()).map_or(0.0, |e| e.integral / std::f32::consts::PI);
+        let environment = (self.environment.as_ref()).map_or(0.0, |e| e.map.integral as f32 / PI);
         // (An emissive texture scales the factor by at most 1.)
         let emitters = (self.emitters.iter())
             .map(|e| weight(e.emissive))
@@ -790,14 +765,14 @@ impl Lights {
         let Some(light) = &self.environment else {
             return (Vec3::ZERO, 0.0);
         };
-        let uv = light.env.direction_to_uv(dir);
+        let texel = light.map.lookup(dir);
         let select = self.selection_pmf(self.count - 1);
         let pdf = if select == 0.0 {
             0.0
         } else {
-            select * environment_pdf_uv(light, uv)
+            select * texel.pdf
         };
-        (light.env.radiance_at_uv(uv), pdf)
+        (texel.radiance, pdf)
     }
 }
 
@@ -816,57 +791,6 @@ fn solid_angle(t: &TriangleLight, p: Vec3, q: Vec3) -> Option<(Vec3, f32, f32)> 
     }
     let pdf = d2 / (t.area * cos);
     (pdf > 0.0 && pdf.is_finite()).then_some((wi, distance, pdf))
-}
-
-/// Solid-angle density (without selection) of environment direction `dir`.
-#[inline]
-fn environment_pdf_uv(light: &EnvironmentLight, uv: Vec2) -> f32 {
-    light
-        .distribution
-        .as_ref()
-        .map_or(0.0, |d| distribution_pdf(d, uv))
-}
-
-/// Solid-angle density of environment direction `uv` under distribution `d` (of
-/// [`environment_weights`]).
-#[inline]
-fn distribution_pdf(d: &Distribution2D, uv: Vec2) -> f32 {
-    let sin_theta = (uv.y * PI).sin();
-    if sin_theta.is_nan() || sin_theta <= 0.0 {
-        return 0.0;
-    }
-    d.pdf(uv) / (2.0 * PI * PI * sin_theta)
-}
-
-/// The solid angle of a texel of row `y` of a `w` x `h` lat-long map.
-fn texel_solid_angle(y: usize, w: usize, h: usize) -> f32 {
-    let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
-    (2.0 * PI / w as f32) * (t0.cos() - t1.cos())
-}
-
-/// The environment's sampling weights: luminance * sin(theta) per cell of a `width` x `rows`
-/// grid (maps under [`MIN_ENVIRONMENT_ROWS`] high get several rows per texel row, so the
-/// density follows sin(theta); every cell lies inside one texel), for the texels `keep`
-/// accepts (by index, row-major; the others weigh 0); with `rows` and the integral of their
-/// luminance over the sphere.
-fn environment_weights(env: &Environment, keep: impl Fn(usize) -> bool) -> (Vec<f32>, usize, f64) {
-    let (w, h) = (env.width as usize, env.height as usize);
-    let split = MIN_ENVIRONMENT_ROWS.div_ceil(h.max(1));
-    let rows = h * split;
-    let mut texel_weights = vec![0.0f32; w * rows];
-    let mut integral = 0.0f64;
-    for y in 0..h {
-        let solid_angle = texel_solid_angle(y, w, h);
-        for x in (0..w).filter(|&x| keep(y * w + x)) {
-            let lum = weight(env.texels[y * w + x] * env.intensity);
-            integral += lum as f64 * solid_angle as f64;
-            for r in y * split..(y + 1) * split {
-                let sin_center = (PI * (r as f32 + 0.5) / rows as f32).sin();
-                texel_weights[r * w + x] = lum * sin_center;
-            }
-        }
-    }
-    (texel_weights, rows, integral)
 }
 
 #[inline]

@@ -27,6 +27,8 @@ pub struct World {
     /// Per material: its shading and BSDFs where no texture varies them over the surface
     /// (computed once here instead of at every hit).
     uniform: Vec<Option<UniformMaterial>>,
+    /// The scene's bounds (its geometry is fixed once the accelerator is built over it).
+    bounds: pathlight_scene::Bounds,
 }
 
 /// A material without textures: the same shading everywhere (on meshes without vertex
@@ -93,7 +95,9 @@ impl World {
             linear,
             has_alpha,
             uniform: Vec::new(),
+            bounds: pathlight_scene::Bounds::EMPTY,
         };
+        world.bounds = world.scene.bounds();
         world.uniform = world
             .scene
             .materials
@@ -178,7 +182,7 @@ impl World {
         if let Some(c) = self.scene.cameras.first() {
             return c.clone();
         }
-        let b = self.scene.bounds();
+        let b = self.bounds;
         let (centre, radius) = if b.is_empty() {
             (glam::Vec3::ZERO, 1.0)
         } else {
@@ -197,7 +201,7 @@ impl World {
 
     /// The centre of the scene's bounds (the origin for an empty scene).
     pub fn scene_centre(&self) -> glam::Vec3 {
-        let b = self.scene.bounds();
+        let b = self.bounds;
         if b.is_empty() {
             glam::Vec3::ZERO
         } else {

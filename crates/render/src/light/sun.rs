@@ -18,10 +18,8 @@
 
 use glam::{Vec2, Vec3};
 
-use super::{
-    distribution_pdf, environment_weights, texel_solid_angle, weight, LightSample, Lights,
-};
-use crate::distribution::Distribution2D;
+use super::environment::{weight, EnvironmentMap, TexelSampler};
+use super::{LightSample, Lights};
 
 /// A texel belongs to the sun if its luminance is at least this fraction of the brightest's.
 pub const SUN_FRACTION: f32 = 0.01;
@@ -39,8 +37,8 @@ pub enum Part {
 /// The environment of a [`Lights`] split into its sun and its sky.
 #[derive(Debug, Clone, Default)]
 pub struct SunAndSky {
-    sun: Option<Distribution2D>,
-    sky: Option<Distribution2D>,
+    sun: Option<TexelSampler>,
+    sky: Option<TexelSampler>,
     /// The sun's texels.
     pub sun_texels: usize,
     /// The sun's share of the environment's power (luminance over the sphere).
@@ -67,16 +65,16 @@ struct SunMoments {
 }
 
 impl SunMoments {
-    /// The moments of the texels `sun` accepts (by index, row-major) of `env`.
-    fn new(env: &pathlight_scene::Environment, sun: &[bool]) -> Self {
-        let (w, h) = (env.width as usize, env.height as usize);
+    /// The moments of the texels `sun` accepts (by index, row-major) of `map`.
+    fn new(map: &EnvironmentMap, sun: &[bool]) -> Self {
+        let grid = &map.grid;
+        let w = grid.width();
         let mut m = Self::default();
         let mut axis = Vec3::ZERO;
         for i in (0..sun.len()).filter(|&i| sun[i]) {
             let (x, y) = (i % w, i / w);
-            let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
-            let dir = env.uv_to_direction(uv);
-            let l = (env.texels[i] * env.intensity).max(Vec3::ZERO) * texel_solid_angle(y, w, h);
+            let dir = grid.direction(x, y, 0.5, 0.5);
+            let l = map.texel(i).radiance.max(Vec3::ZERO) * grid.solid_angle(y) as f32;
             if !l.is_finite() {
                 continue;
             }
@@ -118,34 +116,31 @@ impl SunAndSky {
         let Some(light) = &lights.environment else {
             return Self::default();
         };
-        let env = &light.env;
-        let lum: Vec<f32> = env
-            .texels
-            .iter()
-            .map(|&t| weight(t * env.intensity))
-            .collect();
+        let map = &light.map;
+        let grid = &map.grid;
+        let (w, h) = (grid.width(), grid.height());
+        let lum: Vec<f32> = (0..w * h).map(|i| weight(map.texel(i).radiance)).collect();
         let brightest = lum.iter().copied().fold(0.0f32, f32::max);
-        let (w, h) = (env.width as usize, env.height as usize);
         // The texels bright enough, if they are few enough to be a sun.
         let mut sun: Vec<bool> = lum
             .iter()
             .map(|&l| brightest > 0.0 && l >= SUN_FRACTION * brightest)
             .collect();
-        let solid_angle: f32 = (0..lum.len())
+        let solid_angle: f64 = (0..lum.len())
             .filter(|&i| sun[i])
-            .map(|i| texel_solid_angle(i / w.max(1), w, h))
+            .map(|i| grid.solid_angle(i / w))
             .sum();
-        if solid_angle > MAX_SUN_SOLID_ANGLE {
+        if solid_angle > MAX_SUN_SOLID_ANGLE as f64 {
             sun.fill(false);
         }
-        let (sun_weights, rows, sun_power) = environment_weights(env, |i| sun[i]);
-        let (sky_weights, _, sky_power) = environment_weights(env, |i| !sun[i]);
+        let (sun_weights, sun_power) = map.weights(|i| sun[i]);
+        let (sky_weights, sky_power) = map.weights(|i| !sun[i]);
         let total = sun_power + sky_power;
         Self {
-            sun: Distribution2D::new(&sun_weights, w, rows),
-            sky: Distribution2D::new(&sky_weights, w, rows),
+            sun: TexelSampler::new(&sun_weights, w, h),
+            sky: TexelSampler::new(&sky_weights, w, h),
             sun_texels: sun.iter().filter(|&&s| s).count(),
-            moments: SunMoments::new(env, &sun),
+            moments: SunMoments::new(map, &sun),
             sun_share: if total > 0.0 {
                 (sun_power / total) as f32
             } else {
@@ -192,21 +187,20 @@ impl SunAndSky {
     }
 
     /// A direction toward `part` of `lights`' environment (the one this split was made from)
-    /// drawn in proportion to its luminance * sin(theta): its radiance and solid-angle density.
+    /// drawn in proportion to its luminance: its radiance and solid-angle density.
     /// `None` when the part is black or absent.
     pub fn sample(&self, lights: &Lights, part: Part, u: Vec2) -> Option<LightSample> {
         let d = match part {
             Part::Sun => self.sun.as_ref()?,
             Part::Sky => self.sky.as_ref()?,
         };
-        let env = &lights.environment.as_ref()?.env;
-        let (uv, _) = d.sample(u);
-        let wi = env.uv_to_direction(uv);
+        let map = &lights.environment.as_ref()?.map;
+        let wi = map.sample_with(d, u)?;
         // The density and radiance of the direction itself (the texel it falls in), as the
         // environment's own sampling finds them.
-        let uv = env.direction_to_uv(wi);
-        let pdf = distribution_pdf(d, uv);
-        let radiance = env.radiance_at_uv(uv);
+        let texel = map.grid.texel(wi);
+        let pdf = d.density(&map.grid, texel);
+        let radiance = map.texel(texel).radiance;
         (pdf > 0.0 && pdf.is_finite() && radiance != Vec3::ZERO).then_some(LightSample {
             wi,
             distance: f32::INFINITY,

@@ -470,23 +470,28 @@ fn environment_sampling_is_consistent_and_unbiased() {
     assert!(env_samples > 1000);
 
     // The density integrates to the selection probability: quadrature over the texels (8 x 8
-    // points each, in uv with the 2 pi^2 sin(theta) Jacobian)...
+    // points each, equally spaced in azimuth and in the cosine of the polar angle, so each
+    // stands for an equal share of its texel's solid angle)...
     let (w, h, k) = (16usize, 8usize, 8usize);
     let mut total = 0.0f64;
-    for j in 0..h * k {
-        for i in 0..w * k {
-            let uv = Vec2::new(
-                (i as f32 + 0.5) / (w * k) as f32,
-                (j as f32 + 0.5) / (h * k) as f32,
-            );
-            let dir = env.uv_to_direction(uv);
-            total += (lights.pdf_environment(dir) * 2.0 * PI * PI * (uv.y * PI).sin()) as f64;
+    for y in 0..h {
+        let (c0, c1) = (
+            (PI * y as f32 / h as f32).cos(),
+            (PI * (y + 1) as f32 / h as f32).cos(),
+        );
+        for j in 0..k {
+            let cos_theta = c0 + (c1 - c0) * (j as f32 + 0.5) / k as f32;
+            let v = cos_theta.clamp(-1.0, 1.0).acos() / PI;
+            let solid_angle = (2.0 * PI / (w * k) as f32) * (c0 - c1) / k as f32;
+            for i in 0..w * k {
+                let dir = env.uv_to_direction(Vec2::new((i as f32 + 0.5) / (w * k) as f32, v));
+                total += (lights.pdf_environment(dir) * solid_angle) as f64;
+            }
         }
     }
-    total /= (w * h * k * k) as f64;
     assert!(
         (total - select as f64).abs() < 1e-4 * select as f64,
-        "{total}"
+        "{total} against {select}"
     );
     // ... and by Monte Carlo over uniform directions.
     let (mean, stderr) = estimate(400_000, 6, |_, u| {
