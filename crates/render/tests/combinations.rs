@@ -1,7 +1,7 @@
 //! Every combination of the frame's switches runs: seed 000's adaptive sampling and forward
 //! reprojection, seed 004's ReSTIR, seed 001's filters (none, the data-driven filter, SVGF
-//! with its handover to the data-driven filter, temporal antialiasing alone), with and without
-//! accumulation, on a small textured scene with a dozen lights and a sky, with a still camera
+//! with its handover to the data-driven filter, temporal antialiasing alone), seed 002's
+//! texture-space cache, with and without accumulation, on a small textured scene with a dozen lights and a sky, with a still camera
 //! and a moving one. Every
 //! configuration is valid but seed 000's without accumulation, which is refused with its
 //! reason; every frame's image and history are finite, the frames are the same on 1 and 2
@@ -32,6 +32,10 @@ const FILTER: [&str; 4] = [
      svgf_still_handover = 2\n",
     "[frame.filter]\nmethod = \"taa\"\n",
 ];
+const CACHE: [&str; 2] = [
+    "",
+    "[frame.texture_cache]\nenabled = true\nkernel = 5\nedge_spp = 2\nfresh_spp = 4\n",
+];
 const ACCUMULATE: [&str; 2] = ["", "[frame]\naccumulate = false\n"];
 
 /// Every combination's name and configuration.
@@ -41,8 +45,13 @@ fn combinations() -> Vec<(String, Config)> {
         for (r, reprojection) in REPROJECTION.iter().enumerate() {
             for (s, restir) in RESTIR.iter().enumerate() {
                 for (f, filter) in FILTER.iter().enumerate() {
-                    for (n, accumulate) in ACCUMULATE.iter().enumerate() {
-                        let toml = [*adaptive, reprojection, restir, filter, accumulate].concat();
+                    for ((t, cache), (n, accumulate)) in CACHE
+                        .iter()
+                        .enumerate()
+                        .flat_map(|t| ACCUMULATE.iter().enumerate().map(move |n| (t, n)))
+                    {
+                        let toml =
+                            [*adaptive, reprojection, restir, filter, cache, accumulate].concat();
                         let base = Config {
                             width: 24,
                             height: 16,
@@ -51,7 +60,8 @@ fn combinations() -> Vec<(String, Config)> {
                         };
                         let c = base.with_toml(&toml).unwrap();
                         let name = format!(
-                            "adaptive {a} reprojection {r} restir {s} filter {f} no-accumulate {n}"
+                            "adaptive {a} reprojection {r} restir {s} filter {f} cache {t} \
+                             no-accumulate {n}"
                         );
                         match c.validate() {
                             Ok(()) => out.push((name, c)),
@@ -127,8 +137,8 @@ fn every_combination_runs_finite_whatever_the_thread_count() {
     for ((a, b), name) in one.iter().zip(&two).zip(&names) {
         assert!(a == b, "{name}: 1 and 2 threads differ");
     }
-    // 64 combinations, 24 of them seed 000's without accumulation; two cameras each.
-    assert_eq!(one.len(), (64 - 24) * 2);
+    // 128 combinations, 48 of them seed 000's without accumulation; two cameras each.
+    assert_eq!(one.len(), (128 - 48) * 2);
     // Every switch changes the frames of every combination it is part of (still or moving): a
     // technique its combination ignored would leave them as they were.
     let frames: std::collections::HashMap<&str, &Vec<u32>> =
@@ -140,6 +150,7 @@ fn every_combination_runs_finite_whatever_the_thread_count() {
             "reprojection",
             "restir",
             "filter",
+            "cache",
             "no-accumulate",
         ] {
             let off = combination

@@ -432,6 +432,49 @@ fn a_small_cache_evicts_but_never_mixes_cells() {
 }
 
 /// The cache's settings are checked.
+/// With the cache's switch off, none of its other settings changes a frame, still or moving,
+/// nor the frames' reports: every frame is bit for bit the plain pipeline's.
+#[test]
+fn the_switch_off_leaves_every_frame_as_it_was() {
+    let world = cornell();
+    let base = config(24, 16, 1);
+    let frames = |cfg: &Config, moving: bool| {
+        let views = match moving {
+            true => orbit(&world, 6.0, 4),
+            false => vec![cfg.camera.clone(); 4],
+        };
+        let mut pipeline = Pipeline::new(cfg.clone());
+        let mut out = Vec::new();
+        for view in views {
+            pipeline.set_config(&Config {
+                camera: view,
+                ..cfg.clone()
+            });
+            let report = pipeline.render_frame(&world);
+            assert!(report.texture_cache.is_none());
+            let bits: Vec<u32> = (pipeline.image().iter())
+                .flat_map(|v| v.to_array().map(f32::to_bits))
+                .collect();
+            out.push((bits, report.rays, report.samples));
+        }
+        out
+    };
+    let off = base
+        .with_toml(
+            "[frame.texture_cache]\nenabled = false\nterms = \"all\"\nkernel = 3\n\
+             edge_spp = 8\nfresh_spp = 2\nfresh_budget = 4.0\nlod_bias = -1.0\n\
+             min_roughness = 0.0\nbudget_mb = 1.0\n",
+        )
+        .unwrap();
+    off.validate().unwrap();
+    for moving in [false, true] {
+        assert!(
+            frames(&base, moving) == frames(&off, moving),
+            "moving {moving}"
+        );
+    }
+}
+
 #[test]
 fn bad_cache_settings_are_refused() {
     for toml in [
