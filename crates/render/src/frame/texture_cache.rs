@@ -73,7 +73,8 @@
 //! than an unbounded one). A block whose set is all being shaded is shaded without the cache
 //! (counted as `uncached`). So with a table large enough, every block needed is shaded
 //! exactly once per frame, and the image does not depend on the thread count: a cell's
-//! random stream is keyed by the cell and its sample count, not by the pixel or the thread.
+//! random stream is keyed by the cell, its sample count and the epoch (the frame pipeline's
+//! seed), not by the pixel, the frame or the thread.
 //!
 //! **Temporal reuse** (`temporal`): the cache persists across frames and camera moves, and is
 //! emptied by any other change. `"mean"` (the default): each cell keeps the mean of all its
@@ -82,8 +83,9 @@
 //! view-independent light converges whatever the camera does, and cells seen for a while cost
 //! less and less). Young cells (`fresh_spp`): after the lighting pass, the blocks it shaded
 //! whose cells hold fewer than `fresh_spp` samples are shaded again up to that count, the
-//! youngest first, within `fresh_budget` paths per pixel (all of them at a cold cache's first
-//! frame), for the frames that follow: a cell newly seen costs its samples once, where the
+//! youngest first, within `fresh_budget` paths per pixel (a cold cache's first frame too: no
+//! frame stalls; the blocks left wait for the next frame that sees them), for the frames that
+//! follow: a cell newly seen costs its samples once, where the
 //! reshading rate would have spread fewer over many frames (a cell's samples grow as the
 //! square root of the frames it is seen in), and a camera turning toward new rooms pays for
 //! them over a few frames. A sample's indirect light is clamped (`clamp`) to a multiple of
@@ -786,10 +788,6 @@ struct Caches {
     /// The blocks shaded this frame whose cells hold fewer than `fresh_spp` samples, with
     /// their slots (brought up to it after the lighting pass: [`CacheFrame::top_up`]).
     young: std::sync::Mutex<Vec<(Block, usize)>>,
-    /// The tables were emptied since the last frame (a scene loaded, settings changed): the
-    /// next top-up brings every young cell up, whatever the budget (the cache warmed up once
-    /// instead of over many frames).
-    cold: bool,
 }
 
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
@@ -870,7 +868,6 @@ impl TextureCache {
     /// frame's counters, and the pixels' records (`pixels` of them, for the lighting pass to
     /// fill).
     pub fn prepare(&mut self, world: &World, cfg: &TextureCacheConfig, pixels: usize) {
-        self.cache.cold = false;
         let id = (
             world as *const World as usize,
             world.scene.triangle_count() as usize,
@@ -888,12 +885,10 @@ impl TextureCache {
             self.cache.texels = Table::new(bytes * 3 / 10, SQUARES * layout.1);
             self.layout = layout;
             self.clear = false;
-            self.cache.cold = true;
         }
         if std::mem::take(&mut self.clear) {
             self.cache.samples.clear();
             self.cache.texels.clear();
-            self.cache.cold = true;
         }
         if !std::mem::take(&mut self.same_instant) || self.cache.frame == 0 {
             self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
@@ -1410,8 +1405,8 @@ impl CacheFrame<'_> {
     /// After the frame's lighting pass: the young blocks it shaded (cells of fewer than
     /// `fresh_spp` samples) shaded again up to `fresh_spp`, the youngest first (then by key:
     /// the same blocks whatever the thread count), as many as `fresh_budget` paths per pixel
-    /// of the frame (`pixels`) allow, or all of them at a cold cache's first frame. Returns the
-    /// rays traced.
+    /// of the frame (`pixels`) allow, at a cold cache's first frame as at any other (the rest
+    /// wait for a frame that sees them again). Returns the rays traced.
     pub fn top_up(&self, tracer: &PathTracer, pixels: usize) -> u64 {
         use rayon::prelude::*;
         let mut young = std::mem::take(&mut *self.cache.young.lock().expect("not poisoned"));
@@ -1433,10 +1428,7 @@ impl CacheFrame<'_> {
             })
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let budget = match self.cache.cold {
-            true => u64::MAX,
-            false => (self.cfg.fresh_budget as f64 * pixels as f64) as u64,
-        };
+        let budget = (self.cfg.fresh_budget as f64 * pixels as f64) as u64;
         let target = self.cfg.fresh_spp as f32;
         let mut spent = 0u64;
         order.retain(|&(mean, _, k, _)| {
