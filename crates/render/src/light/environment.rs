@@ -72,6 +72,9 @@ pub struct TexelGrid {
     rows: Vec<f32>,
     /// A column's width in radians.
     delta_phi: f32,
+    /// Per row, its texels' solid angle (double precision: near the poles a row's cosines
+    /// differ in their last bits in single precision).
+    solid_angles: Vec<f64>,
 }
 
 impl TexelGrid {
@@ -89,6 +92,16 @@ impl TexelGrid {
         let rows = (0..=height)
             .map(|y| (std::f64::consts::PI * y as f64 / height as f64).cos() as f32)
             .collect();
+        let h = height as f64;
+        let solid_angles = (0..height)
+            .map(|y| {
+                let (t0, t1) = (
+                    std::f64::consts::PI * y as f64 / h,
+                    std::f64::consts::PI * (y + 1) as f64 / h,
+                );
+                (std::f64::consts::TAU / width as f64) * (t0.cos() - t1.cos())
+            })
+            .collect();
         Self {
             width,
             height,
@@ -96,6 +109,7 @@ impl TexelGrid {
             columns,
             rows,
             delta_phi,
+            solid_angles,
         }
     }
 
@@ -107,15 +121,10 @@ impl TexelGrid {
         self.height
     }
 
-    /// The solid angle of a texel of row `y`, in double precision (near the poles a row's
-    /// cosines differ in their last bits in single precision).
+    /// The solid angle of a texel of row `y`, in double precision.
+    #[inline]
     pub fn solid_angle(&self, y: usize) -> f64 {
-        let h = self.height as f64;
-        let (t0, t1) = (
-            std::f64::consts::PI * y as f64 / h,
-            std::f64::consts::PI * (y + 1) as f64 / h,
-        );
-        (std::f64::consts::TAU / self.width as f64) * (t0.cos() - t1.cos())
+        self.solid_angles[y]
     }
 
     /// The direction at offset (`ox`, `oy`) in [0, 1)^2 within texel (`x`, `y`): the azimuth
