@@ -697,6 +697,9 @@ impl Floor {
 /// Medians over frames.
 pub struct Summary {
     pub ms_per_frame: f64,
+    /// The first frame's time, and the slowest of those after it, in ms (stalls).
+    pub first_ms: f64,
+    pub worst_later_ms: f64,
     pub mrays_per_s: f64,
     pub threads: usize,
     /// (pass, median ms) in pipeline order.
@@ -732,8 +735,12 @@ impl Summary {
         let mut ms: Vec<f64> = reports.iter().map(|r| r.ms).collect();
         let total_ms: f64 = reports.iter().map(|r| r.ms).sum();
         let rays: u64 = reports.iter().map(|r| r.rays).sum();
+        let first_ms = ms.first().copied().unwrap_or(0.0);
+        let worst_later_ms = ms.iter().skip(1).copied().fold(0.0, f64::max);
         Self {
             ms_per_frame: median(&mut ms),
+            first_ms,
+            worst_later_ms,
             mrays_per_s: rays as f64 / (total_ms * 1e3).max(1e-9),
             threads,
             passes,

@@ -68,7 +68,8 @@ pub struct PlayArgs {
     #[arg(long)]
     pub quiet: bool,
 
-    /// Print one JSON object (frames, median times per frame and per pass) as the last line.
+    /// Print one JSON object (frames, median times per frame and per pass, the first frame's
+    /// time and the slowest later one's against the median) as the last line.
     #[arg(long)]
     pub json: bool,
 }
@@ -388,11 +389,22 @@ pub fn run(args: &PlayArgs) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    let median = summary.ms_per_frame.max(1e-9);
+    eprintln!(
+        "first frame {:.1} ms ({:.2}x the median); the slowest after it {:.1} ms ({:.2}x)",
+        summary.first_ms,
+        summary.first_ms / median,
+        summary.worst_later_ms,
+        summary.worst_later_ms / median
+    );
     if args.json {
         println!(
             "{}",
             serde_json::json!({
                 "frames": done,
+                "first_frame_ms": summary.first_ms,
+                "first_over_median": summary.first_ms / median,
+                "worst_later_over_median": summary.worst_later_ms / median,
                 "views": views.len(),
                 "width": config.width,
                 "height": config.height,

@@ -96,6 +96,15 @@ fn keyframes_still_views_accumulate_and_exr_frames() {
     assert!(v["ms_per_frame"].as_f64().unwrap() > 0.0);
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("frames.json")).unwrap()).unwrap();
+    // The stalls: the first frame's time and the slowest later one's, against the median.
+    let times: Vec<f64> = (json.as_array().unwrap().iter())
+        .map(|f| f["ms"].as_f64().unwrap())
+        .collect();
+    assert_eq!(v["first_frame_ms"].as_f64().unwrap(), times[0]);
+    let median = v["ms_per_frame"].as_f64().unwrap();
+    let worst = times[1..].iter().copied().fold(0.0, f64::max);
+    assert!((v["worst_later_over_median"].as_f64().unwrap() - worst / median).abs() < 1e-9);
+    assert!((v["first_over_median"].as_f64().unwrap() - times[0] / median).abs() < 1e-9);
     let accumulated: Vec<u64> = json
         .as_array()
         .unwrap()
