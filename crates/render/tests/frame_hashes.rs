@@ -72,7 +72,7 @@ const CACHE: &str = "[frame.texture_cache]\nenabled = true\nbudget_mb = 64.0\nlo
      filter = \"gaussian\"\nkernel = 9\ntemporal_alpha = 0.7\nterms = \"sky\"\n\
      temporal = \"mean\"\nmax_count = 256\nreshade = 2.0\nshrink = 0.5\nlod = \"area\"\n\
      interpolate = true\nmin_roughness = 0.3\nedge_spp = 1\nfresh_spp = 16\n\
-     fresh_budget = 0.5\nclamp = 1.0\nsun_ratio = true\n";
+     fresh_budget = 0.5\ncold_budget = 1.0\nclamp = 1.0\nsun_ratio = true\n";
 
 /// The configurations, as TOML over [`Config::realtime`] at the test's size (the cache's
 /// cases start with [`CACHE`]).

@@ -466,6 +466,8 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             .on_hover_text("Samples a cell newly seen is brought up to after the frame");
         ui.add(egui::Slider::new(&mut t.fresh_budget, 0.0..=2.0).text("young cells' budget"))
             .on_hover_text("Paths per pixel per frame for young cells");
+        ui.add(egui::Slider::new(&mut t.cold_budget, 0.0..=8.0).text("empty cache's budget"))
+            .on_hover_text("Paths per pixel for young cells at the first frame of an empty cache");
         ui.checkbox(&mut t.sun_ratio, "sun by its exact irradiance")
             .on_hover_text(
                 "With terms = sky: the sun's unshadowed irradiance worked out over its texels, \

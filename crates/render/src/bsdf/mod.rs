@@ -68,6 +68,7 @@
 
 pub(crate) mod fresnel;
 pub(crate) mod microfacet;
+pub mod specular_albedo;
 #[cfg(test)]
 mod tests;
 
@@ -738,6 +739,36 @@ impl Bsdf {
         a += spec / u.len() as f32;
         if a.is_finite() {
             a
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// [`directional_albedo`](Self::directional_albedo) with the rough specular reflection
+    /// from its precomputed table ([`specular_albedo`]: `F0 A + F90 B`, bilinear in the
+    /// cosine and the roughness) instead of samples, where the table holds (reflection
+    /// without refraction at `wo`); elsewhere from `u`'s samples as
+    /// [`directional_albedo`](Self::directional_albedo).
+    pub fn directional_albedo_tabulated(&self, wo: Vec3, u: &[Vec2]) -> Vec3 {
+        if self.lambertian || !self.has_spec || self.smooth {
+            return self.directional_albedo(wo, u);
+        }
+        let Some(lo) = self.lobes(wo) else {
+            return Vec3::ZERO;
+        };
+        if lo.etap < 1.0 {
+            return self.directional_albedo(wo, u);
+        }
+        let diel_t = lo.diel_t.clamp(0.0, 1.0);
+        let diffuse = self.base * ((self.w_diffuse + self.w_trans) * diel_t);
+        let (a, b) =
+            specular_albedo::scale_and_bias(self.ndf.kind, lo.wo_up.z.min(1.0), self.ndf.alpha);
+        let m = self.metallic;
+        let f0 = self.diel_f0 * (1.0 - m) + self.base * m;
+        let f90 = self.diel_f90 * (1.0 - m) + m;
+        let albedo = diffuse + f0 * a + Vec3::splat(f90 * b);
+        if albedo.is_finite() {
+            albedo
         } else {
             Vec3::ZERO
         }

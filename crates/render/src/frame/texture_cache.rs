@@ -82,13 +82,15 @@
 //! of `n` samples is shaded again at a frame with probability `reshade / n` (a still scene's
 //! view-independent light converges whatever the camera does, and cells seen for a while cost
 //! less and less). Young cells (`fresh_spp`): after the lighting pass, the blocks it shaded
-//! whose cells hold fewer than `fresh_spp` samples are shaded again up to that count, the
-//! youngest first, within `fresh_budget` paths per pixel (a cold cache's first frame too: no
-//! frame stalls; the blocks left wait for the next frame that sees them), for the frames that
-//! follow: a cell newly seen costs its samples once, where the
-//! reshading rate would have spread fewer over many frames (a cell's samples grow as the
-//! square root of the frames it is seen in), and a camera turning toward new rooms pays for
-//! them over a few frames. A sample's indirect light is clamped (`clamp`) to a multiple of
+//! whose cells hold fewer than `fresh_spp` samples are shaded again toward that count within
+//! `fresh_budget` paths per pixel (`cold_budget` at an empty cache's first frame: no frame
+//! stalls, the blocks left wait for the next frame that sees them), every young cell up to the
+//! same level first (the error of a cell of `n` samples falls as `1/n`: spread evenly, the
+//! paths lower the frame's error more than on a few cells brought all the way; along the
+//! interior's orbit relMSE 0.104 -> 0.101), for the frames that follow: a cell newly seen costs
+//! its samples once, where the reshading rate would have spread fewer over many frames (a
+//! cell's samples grow as the square root of the frames it is seen in), and a camera turning
+//! toward new rooms pays for them over a few frames. A sample's indirect light is clamped (`clamp`) to a multiple of
 //! what a white Lambertian surface lit directly can reflect ([`crate::light::Lights::
 //! reflected_bound`]): beyond it the path came off a glossy surface, a caustic too rare for
 //! one cell's samples, that a cell would keep for many frames and its filter spread (the
@@ -271,6 +273,10 @@ pub struct TextureCacheConfig {
     /// frame (the rest wait for the next frame they are seen in): a camera that turns toward
     /// new rooms pays for them over several frames instead of in one.
     pub fresh_budget: f32,
+    /// As `fresh_budget`, at the first frame of an empty cache (a scene loaded, settings
+    /// changed): that frame has no young cells left from earlier frames to pay for, and takes
+    /// more of its own (bounded: the first frame costs a few later ones, not a stall).
+    pub cold_budget: f32,
     /// A cell's sample of indirect light is clamped (its luminance, keeping its colour) to
     /// this multiple of the most a white Lambertian surface lit directly by the scene's lights
     /// can reflect ([`crate::light::Lights::reflected_bound`]): with two bounces, what exceeds
@@ -305,6 +311,7 @@ impl Default for TextureCacheConfig {
             edge_spp: 1,
             fresh_spp: 16,
             fresh_budget: 0.5,
+            cold_budget: 2.0,
             clamp: 1.0,
             sun_ratio: true,
         }
@@ -389,6 +396,12 @@ impl TextureCacheConfig {
             (0.0..=MAX_FRESH_BUDGET).contains(&self.fresh_budget),
             "frame.texture_cache.fresh_budget",
             self.fresh_budget,
+            &format!("between 0 and {MAX_FRESH_BUDGET}"),
+        )?;
+        require(
+            (0.0..=MAX_FRESH_BUDGET).contains(&self.cold_budget),
+            "frame.texture_cache.cold_budget",
+            self.cold_budget,
             &format!("between 0 and {MAX_FRESH_BUDGET}"),
         )?;
         require(
@@ -788,6 +801,28 @@ struct Caches {
     /// The blocks shaded this frame whose cells hold fewer than `fresh_spp` samples, with
     /// their slots (brought up to it after the lighting pass: [`CacheFrame::top_up`]).
     young: std::sync::Mutex<Vec<(Block, usize)>>,
+    /// What the texel table holds this frame, unique over every cache of the process and
+    /// frame ([`GENERATIONS`]): the tag of the threads' [`TexelMemo`] entries.
+    generation: u64,
+    /// The tables were emptied since the last frame: the top-up takes `cold_budget`.
+    cold: bool,
+}
+
+/// The source of [`Caches::generation`] (0: no table).
+static GENERATIONS: AtomicU64 = AtomicU64::new(1);
+
+/// Entries of a thread's [`TexelMemo`].
+const MEMO: usize = 64;
+
+/// A thread's last texel blocks read this frame, direct-mapped by key: a pixel's four
+/// texels, and the next pixels' (a block covers a few pixels each way), are found without
+/// the table's hash, probe and checks. An entry is the table's data for its block at its
+/// generation, so what it gives is what the table would.
+struct TexelMemo([(u64, u64, [f32; SQUARES * CHANNELS]); MEMO]);
+
+thread_local! {
+    static TEXEL_MEMO: std::cell::RefCell<TexelMemo> =
+        const { std::cell::RefCell::new(TexelMemo([(0, 0, [0.0; SQUARES * CHANNELS]); MEMO])) };
 }
 
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
@@ -884,14 +919,20 @@ impl TextureCache {
             self.cache.samples = Table::new(bytes * 7 / 10, CELLS * (1 + layout.1));
             self.cache.texels = Table::new(bytes * 3 / 10, SQUARES * layout.1);
             self.layout = layout;
-            self.clear = false;
+            self.clear = true;
         }
-        if std::mem::take(&mut self.clear) {
+        let cleared = std::mem::take(&mut self.clear);
+        self.cache.cold = cleared || self.cache.frame == 0;
+        if cleared {
             self.cache.samples.clear();
             self.cache.texels.clear();
         }
-        if !std::mem::take(&mut self.same_instant) || self.cache.frame == 0 {
+        let same_instant = std::mem::take(&mut self.same_instant);
+        if !same_instant || self.cache.frame == 0 {
             self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
+        }
+        if !same_instant || cleared || self.cache.generation == 0 {
+            self.cache.generation = GENERATIONS.fetch_add(1, Ordering::Relaxed);
         }
         self.cache.counters = Counters::default();
         self.cache.young.get_mut().expect("not poisoned").clear();
@@ -1292,6 +1333,22 @@ impl CacheFrame<'_> {
         work: &mut Work,
     ) -> Status {
         let (bkey, frame) = (block.key(), self.cache.frame);
+        let generation = self.cache.generation;
+        let slot = (bkey.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 58) as usize % MEMO;
+        let remembered = TEXEL_MEMO.with_borrow(|m| {
+            let (g, k, data) = &m.0[slot];
+            let found = *g == generation && *k == bkey;
+            if found {
+                *out = *data;
+            }
+            found
+        });
+        if remembered {
+            return Status::Hit;
+        }
+        let remember = |out: &[f32; SQUARES * CHANNELS]| {
+            TEXEL_MEMO.with_borrow_mut(|m| m.0[slot] = (generation, bkey, *out));
+        };
         let texels = &mut out[..SQUARES * self.cfg.channels()];
         let table = &self.cache.texels;
         loop {
@@ -1299,6 +1356,7 @@ impl CacheFrame<'_> {
                 Claim::Ready(i, s) => {
                     table.read(i, texels);
                     if table.still(i, s, frame) {
+                        remember(out);
                         return Status::Hit;
                     }
                 }
@@ -1313,6 +1371,7 @@ impl CacheFrame<'_> {
                     table.write(i, texels);
                     table.publish(i, bkey, frame);
                     self.cache.counters.texels.fetch_add(1, Ordering::Relaxed);
+                    remember(out);
                     return Status::Miss;
                 }
             }
@@ -1403,10 +1462,11 @@ impl CacheFrame<'_> {
     }
 
     /// After the frame's lighting pass: the young blocks it shaded (cells of fewer than
-    /// `fresh_spp` samples) shaded again up to `fresh_spp`, the youngest first (then by key:
-    /// the same blocks whatever the thread count), as many as `fresh_budget` paths per pixel
-    /// of the frame (`pixels`) allow, at a cold cache's first frame as at any other (the rest
-    /// wait for a frame that sees them again). Returns the rays traced.
+    /// `fresh_spp` samples) shaded again toward `fresh_spp` within `fresh_budget` paths per
+    /// pixel of the frame (`pixels`), at a cold cache's first frame as at any other: every
+    /// young cell up to the same level, the highest the budget pays for, then the youngest
+    /// blocks (then by key: the same blocks whatever the thread count) one sample further.
+    /// The rest wait for a frame that sees them again. Returns the rays traced.
     pub fn top_up(&self, tracer: &PathTracer, pixels: usize) -> u64 {
         use rayon::prelude::*;
         let mut young = std::mem::take(&mut *self.cache.young.lock().expect("not poisoned"));
@@ -1428,24 +1488,54 @@ impl CacheFrame<'_> {
             })
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let budget = (self.cfg.fresh_budget as f64 * pixels as f64) as u64;
-        let target = self.cfg.fresh_spp as f32;
-        let mut spent = 0u64;
-        order.retain(|&(mean, _, k, _)| {
-            let cells = (0..CELLS).filter(|&c| young[k].0.cell(c).is_some()).count();
-            let cost = ((target - mean).max(0.0) * cells as f32).ceil() as u64;
-            // (One that does not fit waits; a smaller one may.)
-            let fits = spent.saturating_add(cost) <= budget;
-            spent += if fits { cost } else { 0 };
-            fits
-        });
-        let rays = order
-            .par_iter_mut()
-            .map(|(_, _, k, d)| {
-                let (block, slot) = young[*k];
+        let per_pixel = match self.cache.cold {
+            true => self.cfg.cold_budget,
+            false => self.cfg.fresh_budget,
+        };
+        let budget = (per_pixel as f64 * pixels as f64) as u64;
+        let fresh = self.cfg.fresh_spp.min(self.cfg.max_count);
+        // The samples that bring block `k`'s cells (data `d`) up to `t` each.
+        let cost = |t: u32, k: usize, d: &[f32]| -> u64 {
+            (0..CELLS)
+                .filter(|&c| young[k].0.cell(c).is_some())
+                .map(|c| t.saturating_sub(d[c * stride] as u32) as u64)
+                .sum()
+        };
+        let total = |t: u32| -> u64 { order.iter().map(|(_, _, k, d)| cost(t, *k, d)).sum() };
+        // Water-filling: every young cell up to the highest level the budget pays for (the
+        // error of cells of n samples falls as 1/n: spread evenly, a budget's paths lower the
+        // frame's error more than on a few cells brought all the way), then the youngest
+        // blocks one sample further while the budget lasts.
+        let (mut level, mut high) = (0, fresh);
+        while level < high {
+            let mid = (level + high).div_ceil(2);
+            match total(mid) <= budget {
+                true => level = mid,
+                false => high = mid - 1,
+            }
+        }
+        let mut spent = total(level);
+        let mut targets: Vec<(u32, usize)> = Vec::with_capacity(order.len());
+        for (i, (_, _, k, d)) in order.iter().enumerate() {
+            let mut t = level;
+            if level < fresh {
+                let more = cost(level + 1, *k, d) - cost(level, *k, d);
+                if spent + more <= budget {
+                    spent += more;
+                    t += 1;
+                }
+            }
+            if cost(t, *k, d) > 0 {
+                targets.push((t, i));
+            }
+        }
+        let rays = targets
+            .into_par_iter()
+            .map(|(t, i)| {
+                let (block, slot) = young[order[i].2];
+                let mut d = order[i].3;
                 let mut work = Work { rays: 0, cells: 0 };
-                let fresh = Some(self.cfg.fresh_spp);
-                self.shade(tracer, &block, &mut d[..words], &mut work, fresh);
+                self.shade(tracer, &block, &mut d[..words], &mut work, Some(t));
                 table.write(slot, &d[..words]);
                 let topped = &self.cache.counters.topped_up;
                 topped.fetch_add(work.cells as u64, Ordering::Relaxed);
@@ -1762,24 +1852,18 @@ fn block_mean(block: &Block, data: &[f32], stride: usize) -> f32 {
     sum / n.max(1) as f32
 }
 
-/// Samples of the specular lobe in [`directional_albedo`].
-const ALBEDO_SAMPLES: usize = 2;
-
-/// The BSDF's directional albedo at `wo` ([`crate::bsdf::Bsdf::directional_albedo`], its
-/// specular lobe by [`ALBEDO_SAMPLES`] samples at fixed places, `(k + 1/2) / n` in both
-/// dimensions): what the pixel multiplies the cached light by. [`crate::bsdf::Bsdf::albedo`],
-/// Fresnel at the macro normal without masking, overestimates rough specular layers at grazing
-/// angles (by 12% on the interior's walls); a Monte Carlo estimate is noisy, and its noise is
-/// the cached pixel's: until session 31 the samples' places were shifted at random per pixel
-/// and frame, which made the walls' pixels change from frame to frame at a still view (in
-/// sRGB, each frame on its own, a standard deviation of 0.0048 against 0.0018 with the fixed
-/// places); the fixed rule's error is a bias that varies smoothly with `wo` (along the
-/// interior's orbit relMSE 0.0898 -> 0.0885, flicker 0.0091 -> 0.0086, FLIP 0.0690 -> 0.0696;
-/// BENCHMARKS.md, "Seed 002 / Where the flicker is").
+/// The BSDF's directional albedo at `wo`, what the pixel multiplies the cached light by: its
+/// rough specular layer from the precomputed table ([`crate::bsdf::specular_albedo`], within
+/// 0.006 of the BSDF's own sampling), elsewhere as [`crate::bsdf::Bsdf::directional_albedo`]
+/// with two samples at fixed places. [`crate::bsdf::Bsdf::albedo`], Fresnel at the macro
+/// normal without masking, overestimates rough specular layers at grazing angles (by 12% on
+/// the interior's walls); a Monte Carlo estimate per pixel is noisy, and its noise is the
+/// cached pixel's (random places per pixel and frame made the walls flicker at a still view:
+/// in sRGB a standard deviation of 0.0048 per frame against 0.0018 with fixed places); the
+/// two fixed places' error was a bias varying smoothly with `wo` (BENCHMARKS.md, "Seed 002").
 fn directional_albedo(bsdf: &crate::bsdf::Bsdf, wo: Vec3) -> Vec3 {
-    let u: [glam::Vec2; ALBEDO_SAMPLES] =
-        std::array::from_fn(|k| glam::Vec2::splat((k as f32 + 0.5) / ALBEDO_SAMPLES as f32));
-    bsdf.directional_albedo(wo, &u)
+    const FIXED: [glam::Vec2; 2] = [glam::Vec2::splat(0.25), glam::Vec2::splat(0.75)];
+    bsdf.directional_albedo_tabulated(wo, &FIXED)
 }
 
 impl CacheFrame<'_> {
