@@ -3,6 +3,7 @@
 
 pub mod color;
 pub mod math;
+pub mod prefetch;
 pub mod rng;
 
 pub use glam;

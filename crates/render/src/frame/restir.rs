@@ -92,6 +92,7 @@
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
+use pathlight_core::prefetch::prefetch;
 use pathlight_core::rng::{hash, mix64, Rng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -741,17 +742,6 @@ const NEIGHBOUR_LANES: usize = 8;
 const NEIGHBOURS_STREAM: u64 = 0x0ff5_e700;
 /// The spatial pass prefetches the neighbours of the pixel this many ahead.
 const AHEAD: usize = 4;
-
-/// Asks the processor to bring `x` into the cache (a hint, without effect on the results).
-#[inline(always)]
-fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch reads nothing the program sees, and `x` is a valid reference.
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>((x as *const T).cast());
-    }
-}
 
 /// Neighbour offsets in the spatial pass's table ([`disk_offsets`]).
 const OFFSETS: usize = 1024;

@@ -28,6 +28,7 @@
 use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
+use pathlight_core::prefetch::prefetch;
 use pathlight_scene::Environment;
 
 use crate::alias::ONE_MINUS_EPSILON;
@@ -396,6 +397,9 @@ impl EnvironmentMap {
     #[inline]
     pub fn sample_with(&self, sampler: &TexelSampler, u: Vec2) -> Option<Vec3> {
         let (x, y, o) = sampler.sample(u);
+        // The caller reads the texel's record next (the one the direction falls in): its
+        // miss, the slowest read of a sample, overlaps the direction's trigonometry.
+        prefetch(&self.texels[y * self.grid.width + x]);
         Some(self.grid.direction(x, y, o.x, o.y))
     }
 

@@ -1,0 +1,67 @@
+#!/bin/sh
+# Real time (issue 59): each configuration's frame against its rays, and its stalls, side by
+# side with another build. BENCHMARKS.md, "Real time: the frame against its rays".
+#
+# For each configuration, REPS alternated runs of `bench frame --json` (60 frames along its
+# 30-degree orbit, after two warm-up frames) with this build and with OLD (when given), and
+# one `play --path orbit --json` (a full turn in 120 steps, 3 degrees per frame, from a cold
+# start) per build for the first frame and the slowest later one against the median.
+# Prints one line per run; the medians are for the reader (or summary.py).
+#
+# Run from the repository's root after `cargo build --release`:
+#   sh benchmarks/realtime/goals.sh                       # this build alone
+#   OLD=/path/to/old/pathlight sh benchmarks/realtime/goals.sh
+# REPS (default 3) and FRAMES (default 40, play's frames) choose the effort.
+set -e
+NEW=./target/release/pathlight
+OLD=${OLD:-}
+REPS=${REPS:-3}
+FRAMES=${FRAMES:-40}
+S=../shared/scenes
+APT="$S/extras_meshopt/dream-apartment.glb --env $S/hdri/noon_grass_1k.hdr"
+APT="$APT --look-from 9.25,1.5,-4.3 --look-at 6.4,1.1,-7.1 --up 0,1,0 --fov-y 70"
+APT="$APT --width 320 --height 180 --max-bounces 2"
+
+# name | threads | arguments
+configs() {
+  echo "plain-interior|1|$APT"
+  echo "plain-interior|2|$APT"
+  echo "plain-cornell-640x360|2|--width 640 --height 360"
+  echo "sun-preset-interior|2|$APT --config experiments/realtime-sun.toml"
+  echo "svgf-preset-interior|2|$APT --config experiments/realtime.toml"
+}
+
+frame() { # build name threads args...
+  b=$1; n=$2; t=$3; shift 3
+  floor=--no-floor
+  # (Only a build with the floor measures it; an older one has no such flag.)
+  if [ "$b" = "$NEW" ]; then floor=; fi
+  $b bench frame "$@" --threads "$t" --frames 60 --json $floor 2>/dev/null | tail -1 |
+    python3 -c "import json,sys; d=json.loads(sys.stdin.read()); \
+print('frame $n threads $t', '$b', 'ms', round(d['ms_per_frame'], 2), 'floor', \
+d.get('floor_ms') and round(d['floor_ms'], 2), 'frame/floor', \
+d.get('frame_over_floor') and round(d['frame_over_floor'], 2))"
+}
+
+stalls() { # build name args...
+  b=$1; n=$2; shift 2
+  $b play "$@" --path orbit --frames "$FRAMES" --quiet --json 2>/dev/null | tail -1 |
+    python3 -c "import json,sys; d=json.loads(sys.stdin.read()); \
+print('stalls $n', '$b', 'median', round(d['ms_per_frame'], 1), 'first', \
+d.get('first_frame_ms') and round(d['first_frame_ms'], 1), 'first/median', \
+d.get('first_over_median') and round(d['first_over_median'], 2), 'worst later/median', \
+d.get('worst_later_over_median') and round(d['worst_later_over_median'], 2))"
+}
+
+configs | while IFS='|' read -r name threads args; do
+  for r in $(seq "$REPS"); do
+    # shellcheck disable=SC2086
+    [ -n "$OLD" ] && frame "$OLD" "$name" "$threads" $args
+    # shellcheck disable=SC2086
+    frame "$NEW" "$name" "$threads" $args
+  done
+  if [ "$threads" = 2 ]; then
+    # shellcheck disable=SC2086
+    stalls "$NEW" "$name" $args
+  fi
+done
