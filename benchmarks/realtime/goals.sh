@@ -33,10 +33,8 @@ configs() {
 
 frame() { # build name threads args...
   b=$1; n=$2; t=$3; shift 3
-  floor=--no-floor
-  # (Only a build with the floor measures it; an older one has no such flag.)
-  if [ "$b" = "$NEW" ]; then floor=; fi
-  $b bench frame "$@" --threads "$t" --frames 60 --json $floor 2>/dev/null | tail -1 |
+  # (A build older than the floor measures no floor: its fields are then empty.)
+  $b bench frame "$@" --threads "$t" --frames 60 --json 2>/dev/null | tail -1 |
     python3 -c "import json,sys; d=json.loads(sys.stdin.read()); \
 print('frame $n threads $t', '$b', 'ms', round(d['ms_per_frame'], 2), 'floor', \
 d.get('floor_ms') and round(d['floor_ms'], 2), 'frame/floor', \

@@ -650,6 +650,7 @@ fn orbit_frames(
     mut measured: impl FnMut(pathlight_render::frame::FrameReport),
 ) -> pathlight_render::frame::Pipeline {
     let mut pipeline = pathlight_render::frame::Pipeline::new(config.clone());
+    pipeline.prepare_world(world);
     for (i, view) in views.iter().enumerate() {
         let mut c = config.clone();
         c.camera.look_from = view.look_from;

@@ -101,6 +101,8 @@ fn keyframes_still_views_accumulate_and_exr_frames() {
         .map(|f| f["ms"].as_f64().unwrap())
         .collect();
     assert_eq!(v["first_frame_ms"].as_f64().unwrap(), times[0]);
+    // The stages' per-world set-up, made before the first frame (none here: no cache).
+    assert!(v["prepare_ms"].as_f64().unwrap() >= 0.0);
     let median = v["ms_per_frame"].as_f64().unwrap();
     let worst = times[1..].iter().copied().fold(0.0, f64::max);
     assert!((v["worst_later_over_median"].as_f64().unwrap() - worst / median).abs() < 1e-9);

@@ -2,8 +2,9 @@
 //! two threads (counted against the table), frames independent of the thread count, a white
 //! furnace that converges through the cache, the Cornell box converging to the reference path
 //! tracer's image within a bound set by the texel size, a cache too small for the frame that
-//! evicts and shades without it but never mixes cells' light, and the cache's switch off
-//! leaving every frame as it was.
+//! evicts and shades without it but never mixes cells' light, the cache's switch off
+//! leaving every frame as it was, and its per-world tables made before the first frame
+//! changing none.
 
 mod common;
 
@@ -473,6 +474,38 @@ fn the_switch_off_leaves_every_frame_as_it_was() {
             "moving {moving}"
         );
     }
+}
+
+/// Making the cache's per-world tables before the first frame (as `view`, `play` and `bench
+/// frame` do) changes no frame: the images and reports of a first frame that makes them.
+#[test]
+fn preparing_the_world_beforehand_changes_no_frame() {
+    let world = cornell();
+    let cfg = cached(
+        &config(24, 16, 1),
+        CacheFilter::Gaussian,
+        CachedTerms::Indirect,
+    );
+    let frames = |prepared: bool| {
+        in_pool(2, || {
+            let mut pipeline = Pipeline::new(cfg.clone());
+            if prepared {
+                pipeline.prepare_world(&world);
+            }
+            (0..3)
+                .map(|_| {
+                    let report = pipeline.render_frame(&world);
+                    let bits: Vec<u32> = (pipeline.image().iter())
+                        .flat_map(|v| v.to_array().map(f32::to_bits))
+                        .collect();
+                    (bits, report.texture_cache.expect("on").cells_shaded)
+                })
+                .collect::<Vec<_>>()
+        })
+    };
+    let (made_by_the_frame, made_before) = (frames(false), frames(true));
+    assert!(made_by_the_frame[0].1 > 0);
+    assert!(made_by_the_frame == made_before);
 }
 
 #[test]

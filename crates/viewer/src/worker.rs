@@ -104,6 +104,7 @@ impl Drop for Worker {
 fn run(mut world: World, config: Config, shared: &(Mutex<State>, Condvar), repaint: &dyn Fn()) {
     let (lock, cvar) = shared;
     let mut pipeline = Pipeline::new(config);
+    pipeline.prepare_world(&world);
     loop {
         {
             let mut s = lock.lock().expect("render state");

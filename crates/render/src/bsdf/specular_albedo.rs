@@ -39,7 +39,7 @@ static TABLES: [OnceLock<Table>; 2] = [OnceLock::new(), OnceLock::new()];
 /// roughness `alpha` of distribution `kind`: the rough specular albedo is `F0 A + F90 B`.
 #[inline]
 pub fn scale_and_bias(kind: Microfacet, mu: f32, alpha: f32) -> (f32, f32) {
-    let table = TABLES[kind as usize].get_or_init(|| Table::new(kind));
+    let table = table(kind);
     // Node i of the cosines is at (i + 1) / COSINES; node j of the roughnesses at
     // j / (ROUGHNESSES - 1).
     let x = (mu * COSINES as f32 - 1.0).clamp(0.0, (COSINES - 1) as f32);
@@ -51,6 +51,17 @@ pub fn scale_and_bias(kind: Microfacet, mu: f32, alpha: f32) -> (f32, f32) {
     let v = (at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx) * (1.0 - fy)
         + (at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx) * fy;
     (v.x, v.y)
+}
+
+/// The table of `kind`, built at its first use.
+fn table(kind: Microfacet) -> &'static Table {
+    TABLES[kind as usize].get_or_init(|| Table::new(kind))
+}
+
+/// Builds the table of `kind` now if it is not built (a renderer's set-up, so that no frame
+/// waits for it).
+pub fn prepare(kind: Microfacet) {
+    table(kind);
 }
 
 impl Table {

@@ -153,6 +153,17 @@ impl Pipeline {
         self.reset = Some(Change::Settings);
     }
 
+    /// Makes what the stages switched on keep per world (the texture cache's grids, its split
+    /// of the environment into sun and sky, and the rough specular albedo's table), as a
+    /// renderer does at load: the first frame then costs what any cold frame costs. Without
+    /// it, the first frame makes them; the frames are the same either way.
+    pub fn prepare_world(&mut self, world: &World) {
+        if self.config.frame.texture_cache.enabled {
+            let microfacet = self.config.path_settings().microfacet;
+            self.texture_cache.prepare_world(world, microfacet);
+        }
+    }
+
     /// Renders one frame of `world`: a new epoch when something changed (each stage by its
     /// own rule), then the frame's passes in order. The display pass is
     /// [`display`](Self::display), run by those who show or write frames.
@@ -219,7 +230,7 @@ impl Pipeline {
             // Seed 002's texture cache, looked up (and filled) by the lighting pass.
             let tc = &cfg.texture_cache;
             if tc.enabled {
-                texture_cache.prepare(world, tc, f.pixels());
+                texture_cache.prepare(world, tc, f.settings.microfacet, f.pixels());
             }
             let mut cache = tc
                 .enabled

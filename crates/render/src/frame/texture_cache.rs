@@ -121,7 +121,7 @@ use glam::{UVec2, Vec3};
 use pathlight_core::rng::{hash, Rng};
 use serde::{Deserialize, Serialize};
 
-use crate::bsdf::{Bsdf, BsdfParams};
+use crate::bsdf::{Bsdf, BsdfParams, Microfacet};
 use crate::camera::Camera;
 use crate::error::ConfigError;
 use crate::footprint::Footprint;
@@ -902,17 +902,14 @@ impl TextureCache {
     /// Before the frame's lighting pass: the grids for `world`, the tables for `cfg`, the
     /// frame's counters, and the pixels' records (`pixels` of them, for the lighting pass to
     /// fill).
-    pub fn prepare(&mut self, world: &World, cfg: &TextureCacheConfig, pixels: usize) {
-        let id = (
-            world as *const World as usize,
-            world.scene.triangle_count() as usize,
-        );
-        if self.grids.as_ref().map(|g| (g.0, g.1)) != Some(id) {
-            self.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
-            self.sun = SunAndSky::new(&world.lights);
-            self.bound = world.lights.reflected_bound();
-            self.clear = true;
-        }
+    pub fn prepare(
+        &mut self,
+        world: &World,
+        cfg: &TextureCacheConfig,
+        microfacet: Microfacet,
+        pixels: usize,
+    ) {
+        self.prepare_world(world, microfacet);
         let layout = (cfg.budget_mb.to_bits(), cfg.channels());
         if self.layout != layout || self.cache.samples.slots() == 0 {
             let bytes = (cfg.budget_mb as f64 * (1 << 20) as f64) as usize;
@@ -938,6 +935,23 @@ impl TextureCache {
         self.cache.young.get_mut().expect("not poisoned").clear();
         self.pixels.clear();
         self.pixels.resize(pixels, CachePixel::default());
+    }
+
+    /// What the cache keeps per world, made for `world` unless it was made for it: the
+    /// triangles' grids, the environment's sun and sky, the clamp's unit (a new world empties
+    /// the cache), and the rough specular albedo's table of `microfacet` (once per run).
+    pub fn prepare_world(&mut self, world: &World, microfacet: Microfacet) {
+        let id = (
+            world as *const World as usize,
+            world.scene.triangle_count() as usize,
+        );
+        if self.grids.as_ref().map(|g| (g.0, g.1)) != Some(id) {
+            self.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
+            self.sun = SunAndSky::new(&world.lights);
+            self.bound = world.lights.reflected_bound();
+            self.clear = true;
+            crate::bsdf::specular_albedo::prepare(microfacet);
+        }
     }
 
     /// What the frame's lighting pass reads (after [`prepare`](Self::prepare)), and the
