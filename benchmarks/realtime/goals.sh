@@ -19,16 +19,18 @@ REPS=${REPS:-3}
 FRAMES=${FRAMES:-40}
 S=../shared/scenes
 APT="$S/extras_meshopt/dream-apartment.glb --env $S/hdri/noon_grass_1k.hdr"
-APT="$APT --look-from 9.25,1.5,-4.3 --look-at 6.4,1.1,-7.1 --up 0,1,0 --fov-y 70"
-APT="$APT --width 320 --height 180 --max-bounces 2"
+APT="$APT --look-from 9.25,1.5,-4.3 --look-at 6.4,1.1,-7.1 --up 0,1,0 --fov-y 70 --max-bounces 2"
+SMALL="--width 320 --height 180"
 
 # name | threads | arguments
 configs() {
-  echo "plain-interior|1|$APT"
-  echo "plain-interior|2|$APT"
+  echo "plain-interior|1|$APT $SMALL"
+  echo "plain-interior|2|$APT $SMALL"
   echo "plain-cornell-640x360|2|--width 640 --height 360"
-  echo "sun-preset-interior|2|$APT --config experiments/realtime-sun.toml"
-  echo "svgf-preset-interior|2|$APT --config experiments/realtime.toml"
+  echo "sun-preset-interior|2|$APT $SMALL --config experiments/realtime-sun.toml"
+  echo "svgf-preset-interior|2|$APT $SMALL --config experiments/realtime.toml"
+  # The moonshot: the sun preset at 640x360.
+  echo "sun-preset-interior-640x360|2|$APT --width 640 --height 360 --config experiments/realtime-sun.toml"
 }
 
 frame() { # build name threads args...

@@ -58,6 +58,13 @@ fn run(
     (images, reports, blocks)
 }
 
+/// An image's values, bit for bit.
+fn bits(image: &[Vec3]) -> Vec<u32> {
+    (image.iter())
+        .flat_map(|v| v.to_array().map(f32::to_bits))
+        .collect()
+}
+
 /// The views of an orbit of `degrees` in `steps` steps about `world`'s camera.
 fn orbit(world: &World, degrees: f32, steps: u32) -> Vec<pathlight_render::config::CameraConfig> {
     let path = CameraPath {
@@ -453,10 +460,7 @@ fn the_switch_off_leaves_every_frame_as_it_was() {
             });
             let report = pipeline.render_frame(&world);
             assert!(report.texture_cache.is_none());
-            let bits: Vec<u32> = (pipeline.image().iter())
-                .flat_map(|v| v.to_array().map(f32::to_bits))
-                .collect();
-            out.push((bits, report.rays, report.samples));
+            out.push((bits(&pipeline.image()), report.rays, report.samples));
         }
         out
     };
@@ -495,10 +499,8 @@ fn preparing_the_world_beforehand_changes_no_frame() {
             (0..3)
                 .map(|_| {
                     let report = pipeline.render_frame(&world);
-                    let bits: Vec<u32> = (pipeline.image().iter())
-                        .flat_map(|v| v.to_array().map(f32::to_bits))
-                        .collect();
-                    (bits, report.texture_cache.expect("on").cells_shaded)
+                    let cells = report.texture_cache.expect("on").cells_shaded;
+                    (bits(&pipeline.image()), cells)
                 })
                 .collect::<Vec<_>>()
         })
