@@ -139,6 +139,33 @@ impl Config {
         }
     }
 
+    /// A preset (a TOML text of any subset of the fields) as a whole configuration: the
+    /// defaults with the fields it sets, and this configuration's own view of the scene kept
+    /// (its camera, image size, display settings and seed: where the user is looking and how,
+    /// not how the frame is made). Applied after another, a preset gives what it gives alone:
+    /// nothing of the first remains. Not checked: see [`validate`](Self::validate).
+    pub fn with_preset(&self, text: &str) -> Result<Config, String> {
+        let mut c = Config::default().with_toml(text)?;
+        c.keep_view(self);
+        Ok(c)
+    }
+
+    /// Whether this configuration is `preset` (made by [`with_preset`](Self::with_preset)),
+    /// its view of the scene aside: false once a setting of its own was changed.
+    pub fn is_preset(&self, preset: &Config) -> bool {
+        let mut p = preset.clone();
+        p.keep_view(self);
+        p == *self
+    }
+
+    /// Takes `from`'s view of the scene: camera, image size, display and seed.
+    fn keep_view(&mut self, from: &Config) {
+        self.camera = from.camera.clone();
+        (self.width, self.height) = (from.width, from.height);
+        self.display = from.display.clone();
+        self.seed = from.seed;
+    }
+
     /// This configuration with the fields a TOML text sets (any subset of the fields; those
     /// it leaves out keep their values here). Not checked: see [`validate`](Self::validate).
     pub fn with_toml(&self, text: &str) -> Result<Config, String> {

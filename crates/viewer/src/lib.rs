@@ -155,6 +155,8 @@ pub struct Viewer {
     frozen_at: Option<Instant>,
     screenshots: u32,
     message: String,
+    /// The preset applied last (its button's name) and the configuration it gave.
+    preset: Option<(&'static str, Config)>,
     /// What the state hook last wrote.
     last_state: String,
 }
@@ -194,6 +196,7 @@ impl Viewer {
             frozen_at: None,
             screenshots: 0,
             message: String::new(),
+            preset: None,
             last_state: String::new(),
         }
     }

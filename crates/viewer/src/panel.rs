@@ -127,6 +127,12 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
             v.save_screenshot();
         }
     });
+    // The preset applied last, by name, and whether a setting was changed since.
+    ui.label(match &v.preset {
+        Some((name, c)) if v.config.is_preset(c) => format!("configuration: {name}"),
+        Some((name, _)) => format!("configuration: {name}, changed"),
+        None => "configuration: the command line's".to_owned(),
+    });
     ui.horizontal(|ui| {
         for (button, file, what, toml) in PRESETS {
             if ui
@@ -134,8 +140,11 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
                 .on_hover_text(format!("{file}: {what}"))
                 .clicked()
             {
-                match v.config.with_toml(toml) {
-                    Ok(c) => v.config = c,
+                match v.config.with_preset(toml) {
+                    Ok(c) => {
+                        v.preset = Some((button, c.clone()));
+                        v.config = c;
+                    }
                     Err(e) => v.message = format!("{file}: {e}"),
                 }
             }
@@ -680,6 +689,37 @@ mod tests {
         for m in crate::NUMBER_MODES {
             assert!(views::find(m.name()).is_some(), "{m}");
         }
+    }
+
+    /// A preset replaces the configuration: applied after any other, it gives what it gives
+    /// alone (the sun preset then the real-time preset used to leave the cache on under
+    /// SVGF), and it keeps the user's view (camera, size, display, seed).
+    #[test]
+    fn a_preset_applied_after_another_equals_the_preset_alone() {
+        let mut base = Config::default();
+        base.camera.fov_y = Some(50.0);
+        base.seed = 7;
+        base.display.exposure = 1.5;
+        for (_, _, _, first) in PRESETS {
+            let after_first = base.with_preset(first).unwrap();
+            for (name, file, _, second) in PRESETS {
+                let alone = base.with_preset(second).unwrap();
+                let stacked = after_first.with_preset(second).unwrap();
+                assert_eq!(stacked, alone, "{name} after another");
+                assert!(stacked.is_preset(&alone));
+                assert_eq!(alone.camera, base.camera, "{file}");
+                assert_eq!((alone.seed, alone.display.exposure), (7, 1.5), "{file}");
+            }
+        }
+        // The sun preset's cache, then the real-time preset: no cache under SVGF.
+        let sun = base.with_preset(PRESETS[2].3).unwrap();
+        assert!(sun.frame.texture_cache.enabled);
+        let realtime = sun.with_preset(PRESETS[0].3).unwrap();
+        assert!(!realtime.frame.texture_cache.enabled);
+        // A setting changed after the preset: no longer the preset.
+        let mut changed = realtime.clone();
+        changed.frame.texture_cache.enabled = true;
+        assert!(!changed.is_preset(&base.with_preset(PRESETS[0].3).unwrap()));
     }
 
     /// Every preset the panel offers is a configuration the pipeline accepts.
