@@ -99,9 +99,9 @@ pub struct ConfigArgs {
     pub max_frames: Option<u32>,
 
     /// Seed 000's adaptive sampling: samples where the pixels' variance is (with
-    /// --reprojection: the combination).
-    #[arg(long)]
-    pub adaptive: bool,
+    /// --reprojection: the combination; `=false` turns off a configuration's).
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub adaptive: Option<bool>,
 
     /// Adaptive sampling: samples every pixel gets before the threshold applies [default: 4].
     #[arg(long, value_name = "N")]
@@ -131,9 +131,9 @@ pub struct ConfigArgs {
     pub adaptive_budget: Option<bool>,
 
     /// Seed 000's forward reprojection: keep the samples that stay valid when the camera
-    /// moves.
-    #[arg(long)]
-    pub reprojection: bool,
+    /// moves (`=false` turns off a configuration's).
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub reprojection: Option<bool>,
 
     /// Reprojection: states per pixel, 1 or 4 [default: 1].
     #[arg(long, value_name = "N")]
@@ -148,21 +148,22 @@ pub struct ConfigArgs {
     #[arg(long, value_name = "N")]
     pub fresh_spp: Option<u32>,
 
-    /// Seed 004's ReSTIR direct illumination at the first hit (`[frame.restir]`).
-    #[arg(long)]
-    pub restir: bool,
+    /// Seed 004's ReSTIR direct illumination at the first hit (`[frame.restir] enabled`;
+    /// `=false` turns off a configuration's).
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub restir: Option<bool>,
 
     /// ReSTIR: light candidates per pixel, 1..1024 [default: 32].
     #[arg(long, value_name = "N")]
     pub candidates: Option<u32>,
 
     /// ReSTIR: the unbiased combination (1/Z with visibility) instead of the plain one.
-    #[arg(long)]
-    pub restir_unbiased: bool,
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub restir_unbiased: Option<bool>,
 
     /// ReSTIR: combine with the paper's MIS weights (generalised balance heuristic).
-    #[arg(long)]
-    pub restir_mis: bool,
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub restir_mis: Option<bool>,
 
     /// Seed 002's texture-space shading cache (`[frame.texture_cache] enabled`; `=false`
     /// turns off a configuration's).
@@ -178,7 +179,9 @@ pub struct ConfigArgs {
     pub lod_bias: Option<f32>,
 
     /// Seed 001's reconstruction filter (`[frame.filter] method`): none, data-driven (of the
-    /// accumulated image) or svgf (spatio-temporal, of each frame's samples).
+    /// accumulated image), svgf (spatio-temporal, of each frame's samples), taa (SVGF's
+    /// temporal antialiasing alone) or rpf (Random Parameter Filtering, offline: `render`
+    /// only).
     #[arg(long, value_name = "METHOD", value_parser = parse_filter)]
     pub filter: Option<Method>,
 
@@ -187,8 +190,8 @@ pub struct ConfigArgs {
     pub kernel: Option<u32>,
 
     /// Data-driven filter: every other pixel of the window ("with holes", about 3x faster).
-    #[arg(long)]
-    pub holes: bool,
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub holes: Option<bool>,
 }
 
 fn parse_filter(s: &str) -> Result<Method, String> {
@@ -353,21 +356,21 @@ impl ConfigArgs {
             c.frame.max_frames = v;
         }
         let (adaptive, reprojection) = (&mut c.frame.adaptive, &mut c.frame.reprojection);
-        adaptive.enabled |= self.adaptive;
+        adaptive.enabled = self.adaptive.unwrap_or(adaptive.enabled);
         adaptive.min_spp = self.min_spp.unwrap_or(adaptive.min_spp);
         adaptive.max_spp = self.max_spp.unwrap_or(adaptive.max_spp);
         adaptive.measure = self.adaptive_measure.unwrap_or(adaptive.measure);
         adaptive.cap = self.adaptive_cap.unwrap_or(adaptive.cap);
         adaptive.budget = self.adaptive_budget.unwrap_or(adaptive.budget);
-        reprojection.enabled |= self.reprojection;
+        reprojection.enabled = self.reprojection.unwrap_or(reprojection.enabled);
         reprojection.samples = self.reprojection_samples.unwrap_or(reprojection.samples);
         reprojection.max_error = self.max_error.unwrap_or(reprojection.max_error);
         reprojection.fresh_spp = self.fresh_spp.unwrap_or(reprojection.fresh_spp);
         let restir = &mut c.frame.restir;
-        restir.enabled |= self.restir;
+        restir.enabled = self.restir.unwrap_or(restir.enabled);
         restir.candidates = self.candidates.unwrap_or(restir.candidates);
-        restir.unbiased |= self.restir_unbiased;
-        restir.mis |= self.restir_mis;
+        restir.unbiased = self.restir_unbiased.unwrap_or(restir.unbiased);
+        restir.mis = self.restir_mis.unwrap_or(restir.mis);
         let cache = &mut c.frame.texture_cache;
         cache.enabled = self.texture_cache.unwrap_or(cache.enabled);
         cache.budget_mb = self.texture_cache_budget.unwrap_or(cache.budget_mb);
@@ -375,8 +378,47 @@ impl ConfigArgs {
         let filter = &mut c.frame.filter;
         filter.method = self.filter.unwrap_or(filter.method);
         filter.kernel = self.kernel.unwrap_or(filter.kernel);
-        filter.holes |= self.holes;
+        filter.holes = self.holes.unwrap_or(filter.holes);
         Ok(c)
+    }
+}
+
+impl ConfigArgs {
+    /// The flags given that only the frame pipeline reads (its stages, their parameters and
+    /// the display mode), by name: `render`, the reference path tracer, refuses them.
+    pub fn frame_only_flags(&self) -> Vec<&'static str> {
+        let given = [
+            ("--display", self.display.is_some()),
+            ("--no-accumulate", self.no_accumulate),
+            ("--max-frames", self.max_frames.is_some()),
+            ("--adaptive", self.adaptive.is_some()),
+            ("--min-spp", self.min_spp.is_some()),
+            ("--max-spp", self.max_spp.is_some()),
+            ("--adaptive-measure", self.adaptive_measure.is_some()),
+            ("--adaptive-cap", self.adaptive_cap.is_some()),
+            ("--adaptive-budget", self.adaptive_budget.is_some()),
+            ("--reprojection", self.reprojection.is_some()),
+            (
+                "--reprojection-samples",
+                self.reprojection_samples.is_some(),
+            ),
+            ("--max-error", self.max_error.is_some()),
+            ("--fresh-spp", self.fresh_spp.is_some()),
+            ("--restir", self.restir.is_some()),
+            ("--candidates", self.candidates.is_some()),
+            ("--restir-unbiased", self.restir_unbiased.is_some()),
+            ("--restir-mis", self.restir_mis.is_some()),
+            ("--texture-cache", self.texture_cache.is_some()),
+            (
+                "--texture-cache-budget",
+                self.texture_cache_budget.is_some(),
+            ),
+            ("--lod-bias", self.lod_bias.is_some()),
+        ];
+        (given.into_iter())
+            .filter(|(_, on)| *on)
+            .map(|(flag, _)| flag)
+            .collect()
     }
 }
 
@@ -398,4 +440,68 @@ pub fn check_realtime(c: &Config) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        settings: ConfigArgs,
+    }
+
+    fn apply(args: &[&str]) -> Config {
+        let cli = Cli::try_parse_from(std::iter::once("pathlight").chain(args.iter().copied()))
+            .expect("the arguments parse");
+        cli.settings.apply(Config::default()).expect("they apply")
+    }
+
+    /// Every switch turns on what it names, and `=false` turns off what a configuration file
+    /// turned on.
+    #[test]
+    fn a_switch_set_to_false_turns_off_a_configuration_files() {
+        let dir = std::env::temp_dir().join(format!("pathlight-switches-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("on.toml");
+        std::fs::write(
+            &file,
+            "[frame.adaptive]\nenabled = true\n[frame.reprojection]\nenabled = true\n\
+             [frame.restir]\nenabled = true\nunbiased = true\nmis = true\n\
+             [frame.texture_cache]\nenabled = true\n[frame.filter]\nholes = true\n",
+        )
+        .unwrap();
+        let f = file.to_str().unwrap();
+        let switches = |c: &Config| {
+            let fr = &c.frame;
+            [
+                fr.adaptive.enabled,
+                fr.reprojection.enabled,
+                fr.restir.enabled,
+                fr.restir.unbiased,
+                fr.restir.mis,
+                fr.texture_cache.enabled,
+                fr.filter.holes,
+            ]
+        };
+        let names = [
+            "--adaptive",
+            "--reprojection",
+            "--restir",
+            "--restir-unbiased",
+            "--restir-mis",
+            "--texture-cache",
+            "--holes",
+        ];
+        assert_eq!(switches(&apply(&["--config", f])), [true; 7]);
+        assert_eq!(switches(&apply(&[])), [false; 7]);
+        let off: Vec<String> = names.iter().map(|n| format!("{n}=false")).collect();
+        let mut args = vec!["--config", f];
+        args.extend(off.iter().map(String::as_str));
+        assert_eq!(switches(&apply(&args)), [false; 7]);
+        assert_eq!(switches(&apply(&names)), [true; 7]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

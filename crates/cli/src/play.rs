@@ -208,8 +208,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
     check_realtime(&config)?;
     let pool = thread_pool(args.threads)?;
-    let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
-    let world = pool.install(|| World::new(scene, config.light_selection));
+    let world = pool.install(|| args.scene.load_world(config.light_selection))?;
     let path = load_path(&args.path, &world, &config)?;
     let views = world.path_views(&path);
     let per_view = path.frames_per_view.max(1) as u64;

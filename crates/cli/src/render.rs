@@ -112,6 +112,13 @@ impl RenderArgs {
             spp: 64,
             ..Config::default()
         };
+        let frame_only = self.settings.frame_only_flags();
+        if !frame_only.is_empty() {
+            bail!(
+                "{}: `render` is the reference path tracer and runs none of the frame pipeline's stages; these options are for view, play, bench frame and eval",
+                frame_only.join(", ")
+            );
+        }
         let mut config = self.settings.apply(base)?;
         if config.frame.filter.method.in_frame() {
             bail!(

@@ -120,6 +120,32 @@ impl SceneArgs {
         args
     }
 
+    /// Loads the scene and builds its world (accelerator, lights) for `light_selection`,
+    /// saying on standard error what it loads and, once done, what it loaded in how long: a
+    /// large scene takes seconds, and the window or the first frame waits for it.
+    pub fn load_world(
+        &self,
+        light_selection: pathlight_render::light::LightSelection,
+    ) -> anyhow::Result<World> {
+        let start = std::time::Instant::now();
+        let name = self.scene.as_ref().map_or_else(
+            || "the built-in Cornell box".to_owned(),
+            |p| p.display().to_string(),
+        );
+        eprintln!("loading {name}...");
+        let scene = pathlight_scene::load(self.scene.as_deref(), &self.load_options())?;
+        let world = World::new(scene, light_selection);
+        let s = world.scene.stats();
+        eprintln!(
+            "loaded {name}: {} triangles, {} textures, {} lights in {:.0} ms",
+            s.triangles,
+            s.textures,
+            world.lights.len(),
+            start.elapsed().as_secs_f64() * 1e3
+        );
+        Ok(world)
+    }
+
     /// A short identity of the loaded scene for checkpoints and partial renders.
     pub fn identity(&self, world: &World) -> String {
         let s = world.scene.stats();

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use pathlight_render::{Config, World};
+use pathlight_render::Config;
 use pathlight_viewer::ViewerOptions;
 
 use crate::config_args::{check_realtime, parse_size, ConfigArgs};
@@ -26,7 +26,7 @@ pub struct ViewArgs {
     /// Image resolution relative to the image area (0.1 to 2; 1 is a rendered pixel per
     /// screen pixel). The default, 0.5, renders a quarter of the pixels: interactive frame
     /// rates on two cores.
-    #[arg(long, value_name = "X", default_value_t = 0.5)]
+    #[arg(long, value_name = "X", default_value_t = 0.5, value_parser = parse_scale)]
     pub scale: f32,
 
     /// Worker threads [default: all cores].
@@ -52,6 +52,15 @@ pub struct ViewArgs {
     pub close_after: f64,
 }
 
+/// A resolution scale, refused outside 0.1..=2 (the viewer's own range).
+fn parse_scale(s: &str) -> std::result::Result<f32, String> {
+    let x: f32 = s.parse().map_err(|_| format!("{s:?} is not a number"))?;
+    match (0.1..=2.0).contains(&x) {
+        true => Ok(x),
+        false => Err(format!("{s}: the scale must be between 0.1 and 2")),
+    }
+}
+
 pub fn run(args: &ViewArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
     check_realtime(&config)?;
@@ -61,9 +70,8 @@ pub fn run(args: &ViewArgs) -> Result<()> {
             .build_global()
             .context("starting the worker threads")?;
     }
-    let scene = pathlight_scene::load(args.scene.scene.as_deref(), &args.scene.load_options())?;
-    let title = format!("pathlight: {}", scene.name);
-    let world = World::new(scene, config.light_selection);
+    let world = args.scene.load_world(config.light_selection)?;
+    let title = format!("pathlight: {}", world.scene.name);
     let options = ViewerOptions {
         title,
         window: [args.window[0] as f32, args.window[1] as f32],

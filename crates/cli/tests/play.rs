@@ -88,6 +88,10 @@ fn keyframes_still_views_accumulate_and_exr_frames() {
         "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // What it loads, said before the wait and after it.
+    let err = stderr(&o);
+    assert!(err.contains("loading the built-in Cornell box..."), "{err}");
+    assert!(err.contains("loaded the built-in Cornell box: "), "{err}");
     let last = stdout(&o).lines().last().unwrap().to_owned();
     let v: serde_json::Value = serde_json::from_str(&last).unwrap();
     // 3 views (t = 0, 0.5, 1) of 2 frames each.

@@ -107,6 +107,20 @@ fn bad_arguments_are_refused_with_a_clear_message() {
             &["render", "--resume", "--out", "/nonexistent-dir/x.png"],
             "x.png.checkpoint",
         ),
+        // The frame pipeline's options: refused, not ignored.
+        (
+            &["render", "--restir"],
+            "--restir: `render` is the reference",
+        ),
+        (
+            &["render", "--texture-cache", "--display", "albedo"],
+            "--display, --texture-cache: `render`",
+        ),
+        (&["render", "--adaptive=false"], "--adaptive: `render`"),
+        (
+            &["render", "--reprojection", "--lod-bias", "2"],
+            "--reprojection, --lod-bias",
+        ),
     ] {
         let r = pathlight(args);
         assert_eq!(r.status.code(), Some(2), "{args:?}");

@@ -459,6 +459,16 @@ fn mouse_and_keys_drive_the_viewer() {
         "W flew away from the view direction: {p0:?} -> {p2:?}"
     );
 
+    // A flies left and leaves accumulation as it was; C switches accumulation.
+    let accumulate = s["accumulate"].clone();
+    xdo(&["keydown", "a"]);
+    std::thread::sleep(Duration::from_millis(300));
+    xdo(&["keyup", "a"]);
+    let s = wait_for("A", &|s| distance(vec3(&s["position"]), p2) > 1e-3);
+    assert_eq!(s["accumulate"], accumulate, "A switched accumulation");
+    xdo(&["key", "c"]);
+    wait_for("C: accumulation", &|s| s["accumulate"] != accumulate);
+
     // Space pauses; Esc closes the window and ends the program.
     xdo(&["key", "space"]);
     wait_for("Space: pause", &|s| s["paused"] == true);
@@ -473,4 +483,19 @@ fn mouse_and_keys_drive_the_viewer() {
     };
     assert!(status.success(), "the viewer exited with {status}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A resolution scale outside the viewer's range is refused with the range, not clamped
+/// without a word (before any window opens).
+#[test]
+fn a_scale_out_of_range_is_refused() {
+    for scale in ["0.05", "5", "nan"] {
+        let o = common::pathlight(&["view", "--scale", scale]);
+        assert_eq!(o.status.code(), Some(2), "--scale {scale}");
+        let err = common::stderr(&o);
+        assert!(
+            err.contains("between 0.1 and 2") || err.contains("not a number"),
+            "--scale {scale}: {err}"
+        );
+    }
 }

@@ -41,7 +41,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("+ / -", "exposure up or down half a stop"),
     ("[ / ]", "resolution scale down or up"),
     ("Space", "pause or resume rendering"),
-    ("A", "accumulation on or off"),
+    ("C", "accumulation on or off"),
     ("R", "restart accumulation"),
     (
         "G",
@@ -245,7 +245,8 @@ impl Viewer {
                 }
                 Key::Home => self.navigation.home(),
                 Key::Space => self.set_paused(!self.paused),
-                Key::A => self.config.frame.accumulate = !self.config.frame.accumulate,
+                // (Not A, which flies left.)
+                Key::C => self.config.frame.accumulate = !self.config.frame.accumulate,
                 Key::R => self.worker.reset(),
                 Key::G => {
                     use pathlight_render::denoise::Method;

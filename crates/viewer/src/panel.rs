@@ -9,7 +9,7 @@ use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::{DisplayMode, View};
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
 use pathlight_render::frame::texture_cache::{
-    CacheFilter, CachedTerms, LodMeasure, Temporal, MAX_KERNEL,
+    ranges, CacheFilter, CachedTerms, LodMeasure, Temporal, MAX_KERNEL,
 };
 use pathlight_render::frame::views;
 use pathlight_render::frame::{
@@ -381,10 +381,9 @@ fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     ui.label("tone mapping and display modes: see Display above");
 }
 
-/// Seed 004's switches and parameters. ReSTIR does not run together with seed 000's
-/// techniques (not built): switching it on switches them off.
+/// Seed 004's switches and parameters (ReSTIR runs with seed 000's techniques too: every
+/// combination of the stages runs, `tests/combinations.rs`).
 fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
-    let was = c.frame.restir.enabled;
     let r = &mut c.frame.restir;
     ui.checkbox(
         &mut r.enabled,
@@ -411,12 +410,6 @@ fn restir(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             "MIS weights (balance heuristic over the pixels)",
         );
     });
-    if r.enabled && !was {
-        c.frame.adaptive.enabled = false;
-        c.frame.reprojection.enabled = false;
-    } else if c.frame.adaptive.enabled || c.frame.reprojection.enabled {
-        c.frame.restir.enabled = false;
-    }
 }
 
 /// Seed 002's texture-space shading cache: its switch and parameters (key `T`).
@@ -430,7 +423,7 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             ui.radio_value(&mut t.terms, CachedTerms::All, "all");
             ui.radio_value(&mut t.terms, CachedTerms::Sky, "sky");
         });
-        ui.add(egui::Slider::new(&mut t.lod_bias, -2.0..=4.0).text("level bias"));
+        ui.add(egui::Slider::new(&mut t.lod_bias, ranges::LOD_BIAS).text("level bias"));
         ui.horizontal(|ui| {
             ui.label("level from");
             ui.radio_value(&mut t.lod, LodMeasure::Area, "area");
@@ -454,7 +447,7 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 ui.selectable_value(&mut t.temporal, Temporal::Exponential, "Eq. 6");
                 ui.selectable_value(&mut t.temporal, Temporal::None, "none");
             });
-        ui.add(egui::Slider::new(&mut t.shrink, 0.0..=2.0).text("filter narrowing"));
+        ui.add(egui::Slider::new(&mut t.shrink, ranges::SHRINK).text("filter narrowing"));
         ui.checkbox(&mut t.interpolate, "interpolate texels");
         ui.add(egui::Slider::new(&mut t.temporal_alpha, 0.0..=0.99).text("Eq. 6 history weight"));
         ui.add(egui::Slider::new(&mut t.reshade, 0.0..=16.0).text("reshade rate (/ n)"));
@@ -464,19 +457,38 @@ fn texture_cache(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                 .text("most samples a cell takes"),
         );
         ui.add(
-            egui::Slider::new(&mut t.budget_mb, 0.1..=1024.0)
+            egui::Slider::new(&mut t.budget_mb, ranges::BUDGET_MB)
                 .logarithmic(true)
                 .text("budget (MB)"),
         );
-        ui.add(egui::Slider::new(&mut t.min_roughness, 0.0..=1.0).text("bypass below roughness"));
-        ui.add(egui::Slider::new(&mut t.edge_spp, 1..=8).text("samples on edges"))
-            .on_hover_text("Camera samples per frame of a pixel on a silhouette or a crease");
-        ui.add(egui::Slider::new(&mut t.fresh_spp, 1..=64).text("young cells' samples"))
-            .on_hover_text("Samples a cell newly seen is brought up to after the frame");
-        ui.add(egui::Slider::new(&mut t.fresh_budget, 0.0..=2.0).text("young cells' budget"))
-            .on_hover_text("Paths per pixel per frame for young cells");
-        ui.add(egui::Slider::new(&mut t.cold_budget, 0.0..=8.0).text("empty cache's budget"))
-            .on_hover_text("Paths per pixel for young cells at the first frame of an empty cache");
+        ui.add(
+            egui::Slider::new(&mut t.min_roughness, ranges::MIN_ROUGHNESS)
+                .text("bypass below roughness"),
+        );
+        ui.add(
+            egui::Slider::new(&mut t.edge_spp, ranges::EDGE_SPP)
+                .logarithmic(true)
+                .text("samples on edges"),
+        )
+        .on_hover_text("Camera samples per frame of a pixel on a silhouette or a crease");
+        ui.add(
+            egui::Slider::new(&mut t.fresh_spp, ranges::FRESH_SPP)
+                .logarithmic(true)
+                .text("young cells' samples"),
+        )
+        .on_hover_text("Samples a cell newly seen is brought up to after the frame");
+        ui.add(
+            egui::Slider::new(&mut t.fresh_budget, ranges::FRESH_BUDGET)
+                .logarithmic(true)
+                .text("young cells' budget"),
+        )
+        .on_hover_text("Paths per pixel per frame for young cells");
+        ui.add(
+            egui::Slider::new(&mut t.cold_budget, ranges::FRESH_BUDGET)
+                .logarithmic(true)
+                .text("empty cache's budget"),
+        )
+        .on_hover_text("Paths per pixel for young cells at the first frame of an empty cache");
         ui.checkbox(&mut t.sun_ratio, "sun by its exact irradiance")
             .on_hover_text(
                 "With terms = sky: the sun's unshadowed irradiance worked out over its texels, \

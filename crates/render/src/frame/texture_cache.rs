@@ -167,6 +167,18 @@ const EDGE_SAMPLES: u32 = 1 << 30;
 /// larger one buys nothing at the resolutions the pipeline runs (256 bytes per pixel already
 /// evict nothing at 320x180; 4 GB is 2,000 bytes per pixel at 1920x1080).
 pub const MAX_BUDGET_MB: f32 = 4096.0;
+/// The settings' accepted ranges, which [`TextureCacheConfig::validate`] checks and the
+/// viewer's sliders span.
+pub mod ranges {
+    use std::ops::RangeInclusive;
+    pub const BUDGET_MB: RangeInclusive<f32> = 0.01..=super::MAX_BUDGET_MB;
+    pub const LOD_BIAS: RangeInclusive<f32> = -8.0..=16.0;
+    pub const SHRINK: RangeInclusive<f32> = 0.0..=2.0;
+    pub const MIN_ROUGHNESS: RangeInclusive<f32> = 0.0..=1.0;
+    pub const EDGE_SPP: RangeInclusive<u32> = 1..=super::MAX_EDGE_SPP;
+    pub const FRESH_SPP: RangeInclusive<u32> = 1..=super::MAX_FRESH_SPP;
+    pub const FRESH_BUDGET: RangeInclusive<f32> = 0.0..=super::MAX_FRESH_BUDGET;
+}
 
 /// The reconstruction filter over the sample cells, in texture space.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -321,6 +333,10 @@ impl Default for TextureCacheConfig {
 impl TextureCacheConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         /// `Ok` when `ok`, else the error for `field`'s `value`, which must be `requirement`.
+        /// "between A and B" of a range.
+        fn between<T: std::fmt::Display>(r: std::ops::RangeInclusive<T>) -> String {
+            format!("between {} and {}", r.start(), r.end())
+        }
         fn require(
             ok: bool,
             field: &'static str,
@@ -333,16 +349,16 @@ impl TextureCacheConfig {
             }
         }
         require(
-            (0.01..=MAX_BUDGET_MB).contains(&self.budget_mb),
+            ranges::BUDGET_MB.contains(&self.budget_mb),
             "frame.texture_cache.budget_mb",
             self.budget_mb,
-            &format!("between 0.01 and {MAX_BUDGET_MB}"),
+            &between(ranges::BUDGET_MB),
         )?;
         require(
-            self.lod_bias.is_finite() && (-8.0..=16.0).contains(&self.lod_bias),
+            ranges::LOD_BIAS.contains(&self.lod_bias),
             "frame.texture_cache.lod_bias",
             self.lod_bias,
-            "between -8 and 16",
+            &between(ranges::LOD_BIAS),
         )?;
         require(
             !self.kernel.is_multiple_of(2) && self.kernel <= MAX_KERNEL,
@@ -357,10 +373,10 @@ impl TextureCacheConfig {
             "in [0, 1)",
         )?;
         require(
-            (0.0..=2.0).contains(&self.shrink),
+            ranges::SHRINK.contains(&self.shrink),
             "frame.texture_cache.shrink",
             self.shrink,
-            "in [0, 2]",
+            &between(ranges::SHRINK),
         )?;
         require(
             self.reshade.is_finite() && self.reshade >= 0.0,
@@ -375,34 +391,34 @@ impl TextureCacheConfig {
             "at least 1",
         )?;
         require(
-            (0.0..=1.0).contains(&self.min_roughness),
+            ranges::MIN_ROUGHNESS.contains(&self.min_roughness),
             "frame.texture_cache.min_roughness",
             self.min_roughness,
-            "in [0, 1]",
+            &between(ranges::MIN_ROUGHNESS),
         )?;
         require(
-            (1..=MAX_EDGE_SPP).contains(&self.edge_spp),
+            ranges::EDGE_SPP.contains(&self.edge_spp),
             "frame.texture_cache.edge_spp",
             self.edge_spp,
-            &format!("from 1 to {MAX_EDGE_SPP}"),
+            &between(ranges::EDGE_SPP),
         )?;
         require(
-            (1..=MAX_FRESH_SPP).contains(&self.fresh_spp),
+            ranges::FRESH_SPP.contains(&self.fresh_spp),
             "frame.texture_cache.fresh_spp",
             self.fresh_spp,
-            &format!("from 1 to {MAX_FRESH_SPP}"),
+            &between(ranges::FRESH_SPP),
         )?;
         require(
-            (0.0..=MAX_FRESH_BUDGET).contains(&self.fresh_budget),
+            ranges::FRESH_BUDGET.contains(&self.fresh_budget),
             "frame.texture_cache.fresh_budget",
             self.fresh_budget,
-            &format!("between 0 and {MAX_FRESH_BUDGET}"),
+            &between(ranges::FRESH_BUDGET),
         )?;
         require(
-            (0.0..=MAX_FRESH_BUDGET).contains(&self.cold_budget),
+            ranges::FRESH_BUDGET.contains(&self.cold_budget),
             "frame.texture_cache.cold_budget",
             self.cold_budget,
-            &format!("between 0 and {MAX_FRESH_BUDGET}"),
+            &between(ranges::FRESH_BUDGET),
         )?;
         require(
             self.clamp.is_finite() && self.clamp >= 0.0,
