@@ -144,7 +144,8 @@ pub struct ConfigArgs {
     pub max_error: Option<f32>,
 
     /// Reprojection: after a move, a pixel holding fewer samples (a hole) takes the missing
-    /// ones at once [default: 0, off: one per frame as the thesis].
+    /// ones at once [default: 0, off: one per frame as the thesis]. (The texture cache's
+    /// young cells have their own: `[frame.texture_cache] fresh_spp` in a --config file.)
     #[arg(long, value_name = "N")]
     pub fresh_spp: Option<u32>,
 

@@ -1,7 +1,7 @@
 //! End-to-end tests of `pathlight info`: they run the built binary.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
 use serde_json::Value;
@@ -140,15 +140,6 @@ fn a_bad_flag_is_a_usage_error_with_code_2() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
 }
 
-/// The shared data folder: `$PATHLIGHT_SHARED`, else `<workspace>/../shared`.
-fn shared_dir() -> PathBuf {
-    match std::env::var_os("PATHLIGHT_SHARED") {
-        Some(dir) => PathBuf::from(dir),
-        // CARGO_MANIFEST_DIR is <workspace>/crates/cli.
-        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"),
-    }
-}
-
 /// Expected triangle counts per scene file from the scene table of `SOURCES.md`: the table whose
 /// header starts with a `file` column and has a `triangles` column; rows whose file cell is a
 /// backticked `folder/file.{obj,gltf,glb}` and whose triangle cell is a number.
@@ -224,15 +215,12 @@ intro | not a table
 
 #[test]
 fn shared_scenes_have_the_triangle_counts_of_sources_md() {
-    let scenes = shared_dir().join("scenes");
+    let scenes = pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR")).join("scenes");
     let sources = scenes.join("SOURCES.md");
-    let Ok(md) = std::fs::read_to_string(&sources) else {
-        println!(
-            "note: skipped, {} not found (set PATHLIGHT_SHARED to the shared folder)",
-            sources.display()
-        );
+    if !pathlight_core::shared_data::present(&sources) {
         return;
-    };
+    }
+    let md = std::fs::read_to_string(&sources).unwrap();
     let expected = expected_triangles(&md);
     println!(
         "expected triangles from {}: {expected:#?}",

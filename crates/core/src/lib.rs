@@ -5,5 +5,6 @@ pub mod color;
 pub mod math;
 pub mod prefetch;
 pub mod rng;
+pub mod shared_data;
 
 pub use glam;

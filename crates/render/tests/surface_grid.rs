@@ -5,19 +5,12 @@
 //! build time and memory are printed (`--nocapture`) for BENCHMARKS.md.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
 use std::time::Instant;
 
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::Rng;
 use pathlight_render::surface_grid::{Cell, SurfaceGrids};
 use pathlight_render::World;
-
-fn shared() -> PathBuf {
-    std::env::var_os("PATHLIGHT_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"))
-}
 
 /// The shared scenes (relative to `scenes/`), each loaded as `pathlight info` loads it.
 const SCENES: [&str; 12] = [
@@ -168,14 +161,10 @@ fn every_triangle_has_its_cells_and_each_cell_its_surface() {
         agree * 10 >= checked * 9,
         "the Cornell box: {agree} of {checked}"
     );
-    let dir = shared().join("scenes");
+    let dir = pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR")).join("scenes");
     for rel in SCENES {
         let path = dir.join(rel);
-        if !path.exists() {
-            eprintln!(
-                "note: {} not found (set PATHLIGHT_SHARED); skipped",
-                path.display()
-            );
+        if !pathlight_core::shared_data::present(&path) {
             continue;
         }
         let scene = pathlight_scene::load(Some(&path), &Default::default()).unwrap();

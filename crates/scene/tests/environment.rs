@@ -1,7 +1,7 @@
 //! Environment maps: values survive a round trip through files written by an independent
 //! encoder (the `image` crate's Radiance HDR and OpenEXR writers), and the shared HDRIs load.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use glam::Vec3;
 use pathlight_scene::{Environment, Limits};
@@ -63,14 +63,11 @@ fn exr_round_trip() {
 
 #[test]
 fn shared_hdris_load() {
-    let shared = std::env::var_os("PATHLIGHT_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-    let dir = shared.join("scenes/hdri");
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("skipped: {} not found", dir.display());
+    let dir = pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR")).join("scenes/hdri");
+    if !pathlight_core::shared_data::present(&dir) {
         return;
-    };
+    }
+    let entries = std::fs::read_dir(&dir).unwrap();
     let mut n = 0;
     for e in entries {
         let p = e.unwrap().path();

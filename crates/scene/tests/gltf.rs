@@ -17,21 +17,13 @@ use pathlight_scene::{
 };
 use serde_json::json;
 
-/// The path of a file of the shared scene pack, or `None` (with a note) when it is missing.
+/// The path of a file of the shared scene pack, or `None` when it is missing (skipped off CI,
+/// see [`pathlight_core::shared_data`]).
 fn shared(relative: &str) -> Option<PathBuf> {
-    let root = std::env::var_os("PATHLIGHT_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-    let path = root.join("scenes").join(relative);
-    if path.is_file() {
-        Some(path)
-    } else {
-        println!(
-            "note: {} is missing; test skipped (set PATHLIGHT_SHARED)",
-            path.display()
-        );
-        None
-    }
+    let path = pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(relative);
+    pathlight_core::shared_data::present(&path).then_some(path)
 }
 
 fn load_shared(relative: &str) -> Option<Scene> {

@@ -128,9 +128,12 @@ fn the_built_in_box_is_the_asset_plus_a_camera() {
         p => panic!("{p:?}"),
     }
     // The copied asset is the shared scene, byte for byte.
-    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes/CornellBox");
+    let shared =
+        pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR")).join("scenes/CornellBox");
     for name in ["CornellBox-Original.obj", "CornellBox-Original.mtl"] {
-        if let Ok(original) = std::fs::read(shared.join(name)) {
+        let original = shared.join(name);
+        if pathlight_core::shared_data::present(&original) {
+            let original = std::fs::read(original).unwrap();
             assert_eq!(std::fs::read(asset(name)).unwrap(), original, "{name}");
         }
     }

@@ -4,7 +4,6 @@
 
 #![allow(dead_code)]
 
-use std::path::PathBuf;
 
 use glam::{Mat3, Vec3};
 use pathlight_accel::{Accel, BruteForce, Ray, SceneTriangles};
@@ -247,19 +246,12 @@ pub fn height_field(rng: &mut Rng, n: usize, jitter: f32, bump: f32) -> (Vec<[Ve
     (tris, rot)
 }
 
-pub fn shared_dir() -> PathBuf {
-    std::env::var_os("PATHLIGHT_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"))
-}
-
+/// A scene of the shared pack (`None`: skipped off CI, see [`pathlight_core::shared_data`]).
 pub fn load_shared(rel: &str) -> Option<SceneTriangles> {
-    let path = shared_dir().join("scenes").join(rel);
-    if !path.exists() {
-        eprintln!(
-            "skipping: {} not found (set PATHLIGHT_SHARED)",
-            path.display()
-        );
+    let path = pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(rel);
+    if !pathlight_core::shared_data::present(&path) {
         return None;
     }
     let scene = pathlight_scene::load_file(&path, &pathlight_scene::Limits::default())
