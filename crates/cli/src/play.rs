@@ -367,6 +367,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
         eprintln!("flicker (mean |difference| of consecutive frames at one view, 0-1): {f:.5}");
     }
     let second_eye = (stereo && shaded[0] > 0).then(|| shaded[1] as f64 / shaded[0] as f64);
+    let second_eye_texels = (stereo && texels[0] > 0).then(|| texels[1] as f64 / texels[0] as f64);
     if let Some(share) = second_eye {
         eprintln!(
             "stereo: the right eye shaded {} cells, {:.1}% of the left eye's {}, and filtered \
@@ -374,7 +375,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
             shaded[1],
             100.0 * share,
             shaded[0],
-            100.0 * texels[1] as f64 / texels[0].max(1) as f64
+            100.0 * second_eye_texels.unwrap_or(0.0)
         );
     }
     eprintln!(
@@ -420,6 +421,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
                 "passes": summary.passes_json(),
                 "flicker": flicker,
                 "second_eye_shading": second_eye,
+                "second_eye_texel_blocks": second_eye_texels,
                 "out": args.out,
             })
         );

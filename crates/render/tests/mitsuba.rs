@@ -36,12 +36,28 @@ fn cornell_box_agrees_with_mitsuba() {
     let film = render(&world, &camera, &config);
     let ours: Vec<Vec3> = film.layer(|p| p.mean);
 
-    // 1. Mean per channel within 1% (the goal); noise of the mean is ~0.1% here.
+    // 1. Mean per channel: BENCHMARKS claims agreement within 0.02% at 64-1024 spp. At 32
+    //    spp the image mean's own noise is larger: within four standard errors of our mean
+    //    (from the pixels' sample variances; Mitsuba's at 4096 spp is about 11x smaller) plus
+    //    0.02%.
     let mean = |img: &[Vec3]| img.iter().copied().sum::<Vec3>() / img.len() as f32;
     let (a, b) = (mean(&ours), mean(&mitsuba));
+    let n = ours.len() as f32;
+    let se = (film.pixels.iter())
+        .map(|px| px.variance() / px.n as f32)
+        .sum::<Vec3>()
+        .map(f32::sqrt)
+        / n;
     let rel = (a - b) / b;
-    eprintln!("means: pathlight {a}, mitsuba {b}, relative difference {rel}");
-    assert!(rel.abs().max_element() < 0.01, "{rel}");
+    eprintln!(
+        "means: pathlight {a}, mitsuba {b}, relative difference {rel}, standard error {}",
+        se / b
+    );
+    assert!(
+        ((a - b).abs() - (4.0 * se + 0.0002 * b)).max_element() < 0.0,
+        "{rel} against {}",
+        (4.0 * se + 0.0002 * b) / b
+    );
 
     // 2. relMSE (seed 002's definition, epsilon 0.001) at the level of Monte Carlo noise:
     // Mitsuba's own 64 spp render against its 4096 spp one gives 0.0088, i.e. about

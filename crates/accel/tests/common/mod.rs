@@ -4,7 +4,6 @@
 
 #![allow(dead_code)]
 
-
 use glam::{Mat3, Vec3};
 use pathlight_accel::{Accel, BruteForce, Ray, SceneTriangles};
 
