@@ -209,9 +209,6 @@ pub struct FilterConfig {
     pub sigma_depth: f32,
     pub sigma_normal: f32,
     pub sigma_texture: f32,
-    /// The first bounce's direction: its test is the same for every neighbour of a pixel
-    /// (the thesis's Eq. 6.19), so it cancels in the normalisation; kept for completeness.
-    pub sigma_direction: f32,
     pub sigma_texture2: f32,
     /// Data-driven: the indirect light's test on texture2, the albedo at the second hit
     /// (the thesis's; off by default: over a few samples the mean of a random bounce's
@@ -301,7 +298,6 @@ impl Default for FilterConfig {
             sigma_depth: 0.5,
             sigma_normal: 0.25,
             sigma_texture: 0.1,
-            sigma_direction: 0.75,
             sigma_texture2: 0.1,
             texture2_test: false,
             variance_scale: [1.0; 5],
@@ -355,7 +351,6 @@ impl FilterConfig {
             ("frame.filter.sigma_depth", self.sigma_depth),
             ("frame.filter.sigma_normal", self.sigma_normal),
             ("frame.filter.sigma_texture", self.sigma_texture),
-            ("frame.filter.sigma_direction", self.sigma_direction),
             ("frame.filter.sigma_texture2", self.sigma_texture2),
         ] {
             if !(v.is_finite() && v > 0.0) {

@@ -299,6 +299,22 @@ impl Config {
 mod tests {
     use super::*;
 
+    /// A key the configuration does not have (a misspelling, or a removed one such as the
+    /// data-driven filter's `sigma_direction`, which nothing read) is refused, naming it.
+    #[test]
+    fn unknown_and_removed_keys_are_refused_by_name() {
+        for (text, key) in [
+            (
+                "[frame.filter]\nsigma_direction = 0.75\n",
+                "sigma_direction",
+            ),
+            ("spp = 1\nmax_bounce = 2\n", "max_bounce"),
+        ] {
+            let e = Config::default().with_toml(text).unwrap_err();
+            assert!(e.contains(key), "{e}");
+        }
+    }
+
     #[test]
     fn toml_fields_merge_over_a_configuration() {
         let base = Config {
