@@ -29,6 +29,19 @@ struct Report<'a> {
     stats: SceneStats,
     load_ms: f64,
     peak_rss_bytes: Option<u64>,
+    /// The environment's sun, as the texture cache's `terms = "sky"` and the sun preset split
+    /// it from the sky (`light::sun`): its texels and its share of the environment's power.
+    sun: Option<(usize, f32)>,
+}
+
+/// The environment's sun (`None`: no environment, or none of its texels is a sun).
+fn sun(scene: &Scene) -> Option<(usize, f32)> {
+    scene.environment.as_ref()?;
+    let lights = pathlight_render::light::Lights::new(scene, Default::default());
+    let split = pathlight_render::light::sun::SunAndSky::new(&lights);
+    split
+        .has_sun()
+        .then_some((split.sun_texels, split.sun_share))
 }
 
 pub fn run(args: &InfoArgs) -> Result<()> {
@@ -43,11 +56,13 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let start = Instant::now();
     let scene = pathlight_scene::load(path, &options)?;
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
+    let peak_rss_bytes = peak_rss_bytes();
     let report = Report {
         stats: scene.stats(),
+        sun: sun(&scene),
         scene: &scene,
         load_ms,
-        peak_rss_bytes: peak_rss_bytes(),
+        peak_rss_bytes,
     };
     if args.json {
         println!("{}", serde_json::to_string(&report.to_json())?);
@@ -93,6 +108,7 @@ impl Report<'_> {
             "environment": s.environment,
             "environment_name": environment.map(|e| e.name.clone()),
             "environment_size": environment.map(|e| [e.width, e.height]),
+            "sun": self.sun.map(|(texels, share)| json!({"texels": texels, "share": share})),
             "bounds": bounds,
             "load_ms": self.load_ms,
             "peak_rss_bytes": self.peak_rss_bytes,
@@ -150,6 +166,15 @@ impl Report<'_> {
             "environment",
             scene.environment.as_ref().map_or("none".into(), |e| {
                 format!("{} ({}x{})", e.name, e.width, e.height)
+            }),
+        ));
+        rows.push((
+            "sun",
+            self.sun.map_or("none".into(), |(texels, share)| {
+                format!(
+                    "{texels} texels of the environment, {:.1}% of its power",
+                    100.0 * share
+                )
             }),
         ));
         if s.bounds.is_empty() {
@@ -251,6 +276,7 @@ mod tests {
             scene: &scene,
             load_ms: 1.0,
             peak_rss_bytes: None,
+            sun: sun(&scene),
         };
         let v = report.to_json();
         for key in [
@@ -267,6 +293,7 @@ mod tests {
             "punctual_lights",
             "cameras",
             "environment",
+            "sun",
             "bounds",
             "load_ms",
             "peak_rss_bytes",

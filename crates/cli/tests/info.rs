@@ -263,3 +263,35 @@ fn shared_scenes_have_the_triangle_counts_of_sources_md() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// `info` says whether the environment has a sun (as the sun preset and the texture cache's
+/// `terms = "sky"` split it): none without an environment or in a studio's lamps; the suns of
+/// the interior's and the garden's skies are small and hold most of their power.
+#[test]
+fn info_says_whether_the_environment_has_a_sun() {
+    assert!(info_json(&[]).get("sun").is_some_and(Value::is_null));
+    let hdri = pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR")).join("scenes/hdri");
+    for (file, sun) in [
+        ("noon_grass_1k.hdr", true),
+        ("kloppenheim_05_1k.hdr", true),
+        ("brown_photostudio_02_1k.hdr", false),
+    ] {
+        let path = hdri.join(file);
+        if !pathlight_core::shared_data::present(&path) {
+            continue;
+        }
+        let v = info_json(&["--env", path.to_str().unwrap()]);
+        match sun {
+            true => {
+                let texels = v["sun"]["texels"].as_u64().unwrap();
+                let share = v["sun"]["share"].as_f64().unwrap();
+                assert!(
+                    (1..=200).contains(&texels) && share > 0.5,
+                    "{file}: {}",
+                    v["sun"]
+                );
+            }
+            false => assert!(v["sun"].is_null(), "{file}: {}", v["sun"]),
+        }
+    }
+}

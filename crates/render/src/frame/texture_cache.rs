@@ -171,13 +171,14 @@ pub const MAX_BUDGET_MB: f32 = 4096.0;
 /// viewer's sliders span.
 pub mod ranges {
     use std::ops::RangeInclusive;
-    pub const BUDGET_MB: RangeInclusive<f32> = 0.01..=super::MAX_BUDGET_MB;
+    pub const BUDGET_MB: RangeInclusive<f32> = 0.01..=crate::frame::texture_cache::MAX_BUDGET_MB;
     pub const LOD_BIAS: RangeInclusive<f32> = -8.0..=16.0;
     pub const SHRINK: RangeInclusive<f32> = 0.0..=2.0;
     pub const MIN_ROUGHNESS: RangeInclusive<f32> = 0.0..=1.0;
-    pub const EDGE_SPP: RangeInclusive<u32> = 1..=super::MAX_EDGE_SPP;
-    pub const FRESH_SPP: RangeInclusive<u32> = 1..=super::MAX_FRESH_SPP;
-    pub const FRESH_BUDGET: RangeInclusive<f32> = 0.0..=super::MAX_FRESH_BUDGET;
+    pub const EDGE_SPP: RangeInclusive<u32> = 1..=crate::frame::texture_cache::MAX_EDGE_SPP;
+    pub const FRESH_SPP: RangeInclusive<u32> = 1..=crate::frame::texture_cache::MAX_FRESH_SPP;
+    pub const FRESH_BUDGET: RangeInclusive<f32> =
+        0.0..=crate::frame::texture_cache::MAX_FRESH_BUDGET;
 }
 
 /// The reconstruction filter over the sample cells, in texture space.
