@@ -284,7 +284,8 @@ pub struct TextureCacheConfig {
     pub fresh_spp: u32,
     /// Paths per pixel of the frame that bringing young cells up to `fresh_spp` may take per
     /// frame (the rest wait for the next frame they are seen in): a camera that turns toward
-    /// new rooms pays for them over several frames instead of in one.
+    /// new rooms pays for them over several frames instead of in one. A stereo pair's second
+    /// eye (the same instant) spends what the first eye's frame left of it.
     pub fresh_budget: f32,
     /// As `fresh_budget`, at the first frame of an empty cache (a scene loaded, settings
     /// changed): that frame has no young cells left from earlier frames to pay for, and takes
@@ -823,6 +824,10 @@ struct Caches {
     generation: u64,
     /// The tables were emptied since the last frame: the top-up takes `cold_budget`.
     cold: bool,
+    /// The young cells' paths this instant may still take, set by its first frame's top-up
+    /// (`u64::MAX`: not yet): a stereo pair's second eye (the same instant) spends what the
+    /// first left, so that the pair tops up what one frame would.
+    instant_budget: AtomicU64,
 }
 
 /// The source of [`Caches::generation`] (0: no table).
@@ -942,8 +947,10 @@ impl TextureCache {
             self.cache.texels.clear();
         }
         let same_instant = std::mem::take(&mut self.same_instant);
-        if !same_instant || self.cache.frame == 0 {
+        let new_instant = !same_instant || self.cache.frame == 0;
+        if new_instant {
             self.cache.frame = self.cache.frame.wrapping_add(1).max(1);
+            *self.cache.instant_budget.get_mut() = u64::MAX;
         }
         if !same_instant || cleared || self.cache.generation == 0 {
             self.cache.generation = GENERATIONS.fetch_add(1, Ordering::Relaxed);
@@ -1523,7 +1530,13 @@ impl CacheFrame<'_> {
             true => self.cfg.cold_budget,
             false => self.cfg.fresh_budget,
         };
-        let budget = (per_pixel as f64 * pixels as f64) as u64;
+        // The frame's budget, or at a second frame of the same instant what the first left.
+        let own = (per_pixel as f64 * pixels as f64) as u64;
+        let left = &self.cache.instant_budget;
+        let budget = match left.load(Ordering::Relaxed) {
+            u64::MAX => own,
+            remaining => remaining,
+        };
         let fresh = self.cfg.fresh_spp.min(self.cfg.max_count);
         // The samples that bring block `k`'s cells (data `d`) up to `t` each.
         let cost = |t: u32, k: usize, d: &[f32]| -> u64 {
@@ -1560,6 +1573,7 @@ impl CacheFrame<'_> {
                 targets.push((t, i));
             }
         }
+        left.store(budget - spent.min(budget), Ordering::Relaxed);
         let rays = targets
             .into_par_iter()
             .map(|(t, i)| {
