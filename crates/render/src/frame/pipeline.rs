@@ -11,7 +11,7 @@ use crate::path::PathTracer;
 use crate::world::World;
 
 use super::accumulation::PixelStats;
-use super::adaptive::{Adaptive, Schedule};
+use super::adaptive::Adaptive;
 use super::display::{DisplayConfig, DisplayMode, DISPLAY};
 use super::filter::{Filter, FILTER};
 use super::history::{History, ACCUMULATE};
@@ -200,57 +200,27 @@ impl Pipeline {
                 camera: &camera,
                 settings: f.settings,
             };
-            // Seed 000: adaptive sampling's schedule, and the plan.
-            let (combination, after_move) = (cfg.reprojection.enabled, reprojection.after_move);
-            above_one = adaptive.prepare(
-                &cfg.adaptive,
-                &f.history,
-                f.gbuffer.width as usize,
-                combination,
-            );
-            let seed = f.settings.seed;
-            let schedule =
-                adaptive.schedule(&cfg.adaptive, &f.history, combination, after_move, seed);
-            let end = schedule.map(|s| s.end);
-            tau = schedule.filter(|s| s.iteration < s.max_spp).map(|s| s.tau);
             filter.before_trace(&mut f.gbuffer, &mut f.lighting, !counts);
+            // Seed 000: adaptive sampling's schedule, and the plan.
             let index = f.sample_index();
-            let plan = plan(
-                cfg,
-                &f.history,
-                index,
-                f.spp,
-                adaptive,
-                reprojection,
-                schedule,
-            );
+            let frame = (index, f.spp, f.gbuffer.width as usize, f.settings.seed);
+            let (plan, above, end, threshold) =
+                plan(cfg, &f.history, frame, adaptive, reprojection);
+            (above_one, tau) = (above, threshold);
             // Primary visibility, seed 004's ReSTIR on the whole frame's first hits, lighting.
             let mut restir = cfg.restir.enabled.then(|| restir.frame(&cfg.restir, index));
             let first_hits = restir.as_mut().map(|r| r as &mut dyn FirstHitLight);
             // Seed 002's texture cache, looked up (and filled) by the lighting pass.
-            let tc = &cfg.texture_cache;
-            if tc.enabled {
-                texture_cache.prepare(world, tc, f.settings.microfacet, f.pixels());
-            }
-            let mut cache = tc
-                .enabled
-                .then(|| texture_cache.frame(tc, f.settings, &camera));
+            let (settings, pixels) = (f.settings, f.pixels());
+            let mut cache = (cfg.texture_cache.enabled)
+                .then(|| texture_cache.begin(world, &cfg.texture_cache, settings, &camera, pixels));
             let previous = f.previous_camera.as_ref();
             let (g, l, hits, times) = (&mut f.gbuffer, &mut f.lighting, &mut f.hits, &mut f.times);
             let with_cache = cache.as_mut().map(|(c, records)| (&*c, &mut **records));
             rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits, with_cache));
             if let Some((c, _)) = &cache {
-                // Young cells brought up to `fresh_spp` for the frames that follow.
-                let t = Instant::now();
-                rays += c.top_up(&tracer, f.pixels());
-                f.times.since(TEXTURE_CACHE, t);
-            }
-            if tc.enabled {
-                let (report, ms) = texture_cache.report();
-                let ms = ms / rayon::current_num_threads() as f64;
-                f.times.add(TEXTURE_CACHE, ms);
-                f.times.add(LIGHTING, -ms);
-                cache_report = Some(report);
+                rays += c.top_up(&tracer, pixels, &mut f.times);
+                cache_report = Some(texture_cache.end(&mut f.times, LIGHTING));
             }
             // Seed 000: the samples reprojected pixels lack (`fresh_spp`).
             let t = Instant::now();
@@ -411,20 +381,30 @@ impl Pipeline {
 /// The frame's plan: seed 000's when its techniques are on (each pixel from its own count in
 /// `history`, adaptive sampling's `schedule`), else every pixel from sample index `index`;
 /// `spp` samples per pixel and frame.
+/// Seed 000's decisions at a traced frame (its sample `index`, samples per pixel `spp`, image
+/// width and epoch seed in `frame`): adaptive sampling's probabilities brought up to date, its
+/// schedule, and the plan of the frame's samples. Returns the plan, the pixels whose
+/// probability is above one (when they are fixed), the iteration the frame ends at and the
+/// threshold while it falls.
+#[allow(clippy::type_complexity)]
 fn plan<'a>(
     cfg: &FrameConfig,
     history: &'a [PixelStats],
-    index: u32,
-    spp: u32,
-    adaptive: &'a Adaptive,
+    (index, spp, width, seed): (u32, u32, usize, u64),
+    adaptive: &'a mut Adaptive,
     reprojection: &'a Reprojection,
-    schedule: Option<Schedule<'a>>,
-) -> FramePlan<'a> {
+) -> (FramePlan<'a>, Option<u64>, Option<u32>, Option<f32>) {
+    let (combination, after_move) = (cfg.reprojection.enabled, reprojection.after_move);
+    let above_one = adaptive.prepare(&cfg.adaptive, history, width, combination);
+    let adaptive: &'a Adaptive = adaptive;
+    let schedule = adaptive.schedule(&cfg.adaptive, history, combination, after_move, seed);
+    let end = schedule.map(|s| s.end);
+    let tau = schedule.filter(|s| s.iteration < s.max_spp).map(|s| s.tau);
     let r = &cfg.reprojection;
     if !(cfg.adaptive.enabled || r.enabled) {
-        return FramePlan::Uniform(Uniform(index, spp));
+        return (FramePlan::Uniform(Uniform(index, spp)), above_one, end, tau);
     }
-    FramePlan::Planned(Planned {
+    let plan = FramePlan::Planned(Planned {
         history,
         probability: &adaptive.probability,
         schedule,
@@ -434,7 +414,8 @@ fn plan<'a>(
         reprojection: r.enabled,
         spp,
         fresh: if reprojection.carried { r.fresh_spp } else { 0 },
-    })
+    });
+    (plan, above_one, end, tau)
 }
 
 /// What a change of the configuration from `old` to `new` asks of the next frame: a camera

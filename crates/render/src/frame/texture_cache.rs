@@ -136,7 +136,7 @@ use super::display::{viridis, View, ViewKind, NONE};
 use super::gbuffer::{GBuffer, PrimaryHit};
 use super::lighting::{self, LightSample};
 use super::stage::Stage;
-use super::state::{Change, FrameState};
+use super::state::{Change, FrameState, Times};
 
 /// The stage's name (its views' heading, its pass's time).
 pub const TEXTURE_CACHE: &str = "texture-cache";
@@ -1009,6 +1009,31 @@ impl TextureCache {
         (frame, &mut self.pixels)
     }
 
+    /// Before the frame's lighting pass: [`prepare`](Self::prepare) for `world`, `cfg` and
+    /// `pixels` pixels, then [`frame`](Self::frame).
+    pub fn begin<'a>(
+        &'a mut self,
+        world: &World,
+        cfg: &'a TextureCacheConfig,
+        settings: PathSettings,
+        camera: &'a Camera,
+        pixels: usize,
+    ) -> (CacheFrame<'a>, &'a mut [CachePixel]) {
+        self.prepare(world, cfg, settings.microfacet, pixels);
+        self.frame(cfg, settings, camera)
+    }
+
+    /// After the frame's lighting pass (`lighting`, the pass's name) and top-up: what the
+    /// cache did, its lookups' thread time (spread over the threads) moved in `times` from
+    /// the lighting pass to the stage's.
+    pub fn end(&self, times: &mut Times, lighting: &'static str) -> CacheReport {
+        let (report, ms) = self.report();
+        let ms = ms / rayon::current_num_threads() as f64;
+        times.add(TEXTURE_CACHE, ms);
+        times.add(lighting, -ms);
+        report
+    }
+
     /// What the cache did this frame, and the thread time its lookups took (ms).
     pub fn report(&self) -> (CacheReport, f64) {
         let c = &self.cache.counters;
@@ -1505,8 +1530,9 @@ impl CacheFrame<'_> {
     /// young cell up to the same level, the highest the budget pays for, then the youngest
     /// blocks (then by key: the same blocks whatever the thread count) one sample further.
     /// The rest wait for a frame that sees them again. Returns the rays traced.
-    pub fn top_up(&self, tracer: &PathTracer, pixels: usize) -> u64 {
+    pub fn top_up(&self, tracer: &PathTracer, pixels: usize, times: &mut Times) -> u64 {
         use rayon::prelude::*;
+        let start = Instant::now();
         let mut young = std::mem::take(&mut *self.cache.young.lock().expect("not poisoned"));
         let (table, frame) = (&self.cache.samples, self.cache.frame);
         // (A block's words, a cell's.)
@@ -1589,6 +1615,7 @@ impl CacheFrame<'_> {
             .sum();
         young.clear();
         *self.cache.young.lock().expect("not poisoned") = young;
+        times.since(TEXTURE_CACHE, start);
         rays
     }
 
