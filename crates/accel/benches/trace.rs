@@ -12,9 +12,7 @@ use glam::Vec3;
 use pathlight_accel::{Accel, NativeBvh, Ray, SceneTriangles};
 
 fn shared_dir() -> PathBuf {
-    std::env::var_os("PATHLIGHT_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"))
+    pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR"))
 }
 
 fn load(rel: &str) -> Option<SceneTriangles> {

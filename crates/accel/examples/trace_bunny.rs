@@ -27,9 +27,7 @@ impl Rng {
 }
 
 fn shared_dir() -> PathBuf {
-    std::env::var_os("PATHLIGHT_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"))
+    pathlight_core::shared_data::dir(env!("CARGO_MANIFEST_DIR"))
 }
 
 #[inline(never)]

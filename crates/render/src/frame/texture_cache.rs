@@ -924,7 +924,7 @@ impl TextureCache {
     /// Before the frame's lighting pass: the grids for `world`, the tables for `cfg`, the
     /// frame's counters, and the pixels' records (`pixels` of them, for the lighting pass to
     /// fill).
-    pub fn prepare(
+    fn prepare(
         &mut self,
         world: &World,
         cfg: &TextureCacheConfig,
@@ -980,7 +980,7 @@ impl TextureCache {
 
     /// What the frame's lighting pass reads (after [`prepare`](Self::prepare)), and the
     /// pixels' records it fills.
-    pub fn frame<'a>(
+    fn frame<'a>(
         &'a mut self,
         cfg: &'a TextureCacheConfig,
         settings: PathSettings,
@@ -1035,7 +1035,7 @@ impl TextureCache {
     }
 
     /// What the cache did this frame, and the thread time its lookups took (ms).
-    pub fn report(&self) -> (CacheReport, f64) {
+    fn report(&self) -> (CacheReport, f64) {
         let c = &self.cache.counters;
         let load = |a: &AtomicU64| a.load(Ordering::Relaxed);
         (

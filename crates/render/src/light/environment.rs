@@ -90,18 +90,13 @@ impl TexelGrid {
                 [s as f32, c as f32]
             })
             .collect();
-        let rows = (0..=height)
-            .map(|y| (std::f64::consts::PI * y as f64 / height as f64).cos() as f32)
+        // The row edges' cosines in double precision, for both the edges and the solid angles.
+        let cosines: Vec<f64> = (0..=height)
+            .map(|y| (std::f64::consts::PI * y as f64 / height as f64).cos())
             .collect();
-        let h = height as f64;
-        let solid_angles = (0..height)
-            .map(|y| {
-                let (t0, t1) = (
-                    std::f64::consts::PI * y as f64 / h,
-                    std::f64::consts::PI * (y + 1) as f64 / h,
-                );
-                (std::f64::consts::TAU / width as f64) * (t0.cos() - t1.cos())
-            })
+        let rows = cosines.iter().map(|&c| c as f32).collect();
+        let solid_angles = (cosines.windows(2))
+            .map(|c| (std::f64::consts::TAU / width as f64) * (c[0] - c[1]))
             .collect();
         Self {
             width,
