@@ -11,7 +11,9 @@ use crate::bsdf::{Bsdf, BsdfParams};
 use crate::config::Config;
 use crate::light::tests::{emissive_material, instance, mesh, polygon_irradiance};
 use crate::light::LightSelection;
+use crate::surface::Surface;
 use crate::world::World;
+use pool::LANES;
 
 fn point(light: u32) -> LightPoint {
     LightPoint {
