@@ -2,7 +2,7 @@
 # Seed 002's budget sweep: cells shaded per frame (and blocks shaded without the cache, their
 # set full) against the cache's memory in bytes per pixel, on the interior along the built-in
 # orbit (3 degrees per frame), the cache's defaults but for young cells' samples and the clamp
-# (the paper's protocol: each cell shaded once per frame it is needed; since session 30 the
+# (the paper's protocol: each cell shaded once per frame it is needed; since 5ef8d42 the
 # defaults bring young cells up to 16 samples after each frame). BENCHMARKS.md, "Seed 002" /
 # Budget.
 # Run from the repository's root: sh benchmarks/issue-50/budget.sh
