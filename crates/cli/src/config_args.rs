@@ -378,8 +378,8 @@ impl ConfigArgs {
         cache.lod_bias = self.lod_bias.unwrap_or(cache.lod_bias);
         let filter = &mut c.frame.filter;
         filter.method = self.filter.unwrap_or(filter.method);
-        filter.kernel = self.kernel.unwrap_or(filter.kernel);
-        filter.holes = self.holes.unwrap_or(filter.holes);
+        filter.data_driven.kernel = self.kernel.unwrap_or(filter.data_driven.kernel);
+        filter.data_driven.holes = self.holes.unwrap_or(filter.data_driven.holes);
         Ok(c)
     }
 }
@@ -471,7 +471,7 @@ mod tests {
             &file,
             "[frame.adaptive]\nenabled = true\n[frame.reprojection]\nenabled = true\n\
              [frame.restir]\nenabled = true\nunbiased = true\nmis = true\n\
-             [frame.texture_cache]\nenabled = true\n[frame.filter]\nholes = true\n",
+             [frame.texture_cache]\nenabled = true\n[frame.filter.data_driven]\nholes = true\n",
         )
         .unwrap();
         let f = file.to_str().unwrap();
@@ -484,7 +484,7 @@ mod tests {
                 fr.restir.unbiased,
                 fr.restir.mis,
                 fr.texture_cache.enabled,
-                fr.filter.holes,
+                fr.filter.data_driven.holes,
             ]
         };
         let names = [

@@ -10,8 +10,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
 use pathlight_core::rng::Rng;
 use pathlight_denoise::{
-    ColourWeights, DataDriven, ErrorPair, Features, FilterConfig, Method, Svgf, SvgfFrame,
-    SvgfParams,
+    ColourWeights, DataDriven, DataDrivenConfig, ErrorPair, Features, Svgf, SvgfFrame, SvgfParams,
 };
 
 fn vec3(rng: &mut Rng, scale: f32) -> Vec3 {
@@ -105,11 +104,10 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
     group.sample_size(20);
     for &kernel in kernels {
         for holes in [false, true] {
-            let config = FilterConfig {
-                method: Method::DataDriven,
+            let config = DataDrivenConfig {
                 kernel,
                 holes,
-                ..FilterConfig::default()
+                ..DataDrivenConfig::default()
             };
             let name = format!("kernel {kernel}{}", if holes { " holes" } else { "" });
             group.bench_function(name, |b| {
@@ -122,32 +120,31 @@ fn size(c: &mut Criterion, w: usize, h: usize, kernels: &[u32]) {
     // (`colour_weights = "equal"`, the default until 2026-11-28), and the narrower lanes
     // where the processor has wider ones (21x21 with holes only).
     if kernels.contains(&21) {
-        let holes = FilterConfig {
-            method: Method::DataDriven,
+        let holes = DataDrivenConfig {
             kernel: 21,
             holes: true,
-            ..FilterConfig::default()
+            ..DataDrivenConfig::default()
         };
-        let before = FilterConfig {
+        let before = DataDrivenConfig {
             error_pair: ErrorPair::Product,
             sigma_direct: 4.0,
             sigma_indirect: 4.0,
             texture2_test: true,
-            ..holes.clone()
+            ..holes
         };
-        let sure = FilterConfig {
+        let sure = DataDrivenConfig {
             sure: true,
-            ..holes.clone()
+            ..holes
         };
-        let equal = FilterConfig {
+        let equal = DataDrivenConfig {
             colour_weights: ColourWeights::Equal,
-            ..holes.clone()
+            ..holes
         };
         for (name, config, lanes) in [
             ("product", before, "widest"),
             ("sure", sure, "widest"),
             ("equal", equal, "widest"),
-            ("avx2", holes.clone(), "avx2"),
+            ("avx2", holes, "avx2"),
             ("portable", holes, "portable"),
         ] {
             let mut filter = DataDriven::new();

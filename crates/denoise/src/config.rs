@@ -20,7 +20,7 @@
 //!   001").
 //!   The thesis's test on radiance as it is (`colour_units = "linear"`, sigmas 0.75 and 0.5)
 //!   never converges: its error stops falling while the unfiltered image's goes on (measured,
-//!   BENCHMARKS.md "Seed 001": at 32 spp 0.68-2.9x the unfiltered CIELUV MSE, against
+//!   at c8a57f1, 2026-11-25: at 32 spp 0.68-2.9x the unfiltered CIELUV MSE, against
 //!   0.12-1.2x in variance units). `colour_units = "relative"` divides by
 //!   `(1 + L_p)(1 + L_q)`, the luminances of the two pixels' light (dividing by the centre's
 //!   alone blurred the Cornell box's light into its ceiling).
@@ -36,7 +36,7 @@
 //!   small albedo, and tested alike they hide a change in the channel the surface shows
 //!   (measured on `experiments/001-quality.toml`: at 8 spp the interior's CIELUV MSE 0.08x
 //!   the unfiltered image's with `equal`, 0.06x with `albedo`; the garden's at 128 frames of
-//!   `experiments/001-still.toml` 1.30x and 0.92x; BENCHMARKS.md, "Seed 001").
+//!   `experiments/001-still.toml` 1.30x and 0.92x; eb0b101, 2026-11-28).
 //! - **Demodulation** (`demodulate`, on): the light is filtered divided by the albedo.
 //! - **The two pixels' errors** (`error_pair`, `sum`): added in squares or multiplied
 //!   ([`crate::data_driven`]).
@@ -143,74 +143,40 @@ pub enum ErrorPair {
     Product,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+/// `[frame.filter]`: the method, and each method's settings in its own table.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, try_from = "FilterFile")]
 pub struct FilterConfig {
     pub method: Method,
-    /// Data-driven: the window's width in pixels (odd).
+    /// `[frame.filter.data_driven]`: seed 001's filter (and SVGF's handover to it).
+    pub data_driven: DataDrivenConfig,
+    /// `[frame.filter.svgf]`: the spatio-temporal filter.
+    pub svgf: SvgfConfig,
+    /// `[frame.filter.taa]`: temporal antialiasing (SVGF's last stage, and `method = "taa"`).
+    pub taa: TaaConfig,
+    /// `[frame.filter.rpf]`: Random Parameter Filtering, the offline baseline.
+    pub rpf: RpfConfig,
+}
+
+/// `[frame.filter.data_driven]`: the data-driven filter (seed 001; module docs for its
+/// departures from the thesis).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DataDrivenConfig {
+    /// the window's width in pixels (odd).
     pub kernel: u32,
-    /// Data-driven: every other pixel of the window in each direction ("with holes").
+    /// every other pixel of the window in each direction ("with holes").
     pub holes: bool,
-    /// SVGF: a-trous iterations.
-    pub atrous_iterations: u32,
-    /// SVGF: the a-trous kernel's width, 5 (the paper's B3 spline) or 3 (the linear
-    /// B-spline: a third of the taps; not in the paper). 3 by default: along camera paths as
-    /// good or better on every scene measured, in 0.6x the time (BENCHMARKS.md, "Seed 001").
-    pub atrous_kernel: u32,
-    /// SVGF: integrate and filter direct and indirect light apart (the paper's two signals);
-    /// false filters their sum as one signal (not in the paper: about 40% fewer operations
-    /// per tap).
-    pub svgf_split: bool,
-    /// SVGF: the reprojection's normal test. `k > 0` (16 by default) keeps a previous pixel
-    /// whose normal lies within `k (w + 0.01)` of this one's, `w` this pixel's normal width
-    /// (over its four neighbours, the smaller of each axis's two differences), as the paper's
-    /// authors' implementation tests against the normal's screen-space width: normal-mapped
-    /// foliage, whose normals change from pixel to pixel, keeps its history, a flat surface
-    /// is tested more tightly than by a cosine of 0.9. 0 keeps a previous pixel whose normal's
-    /// cosine with this one's is at least 0.9 (this filter's first test; not in the paper).
-    pub svgf_normal_width: f32,
-    /// SVGF: temporal antialiasing of the output (the paper applies it after the filter;
-    /// [`crate::taa`]): each pixel blended with its reprojected previous output (weight 0.7),
-    /// clamped to this frame's 3x3 neighbourhood's mean plus and minus half a standard
-    /// deviation (in YCoCg of light compressed by its luminance). On by default (the paper's
-    /// last stage): along every orbit measured 15-45% less CIELUV error and 2.4-5x less
-    /// flicker, for 3-5 ms at 640x360.
-    pub svgf_taa: bool,
-    /// Temporal antialiasing (SVGF's last stage, and `method = "taa"`): this frame's weight in
-    /// the blend with the clamped history (0.3, chosen for SVGF's output; higher trails less
-    /// behind a moving camera and smooths less).
-    pub taa_alpha: f32,
-    /// Temporal antialiasing: the half-width of the box the history is clamped to, in standard
-    /// deviations of this frame's 3x3 neighbourhood (0.5, chosen for SVGF's output; wider
-    /// keeps more of the history: smoother, and slower to follow a change).
-    pub taa_gamma: f32,
-    /// SVGF: converge while the camera is still (not in the paper): a pixel whose motion
-    /// vector is 0 takes each frame into a plain mean of its history instead of at a weight of
-    /// 0.2, and its luminance test narrows with the mean's noise, so a still view converges
-    /// to the path tracer's image; a pixel that moves is filtered as the paper does
-    /// ([`crate::svgf`]). On by default: better at 32 and 128 still frames on every scene
-    /// measured, and a moving camera's frames are the same bit for bit.
-    pub svgf_converge: bool,
-    /// SVGF: once the camera has been still for this many frames, the data-driven filter of
-    /// the accumulated image (with this configuration's data-driven parameters) takes over
-    /// until it moves again; 0 never (not in the paper). Needs `frame.accumulate`: the frame
-    /// gathers the features' statistics of every frame of a still camera (from each epoch's
-    /// first on, as the data-driven filter does: its silhouettes against the sky need every
-    /// sample's; the first is gathered by the second frame, so a camera that moves at every
-    /// frame gathers none), and
-    /// SVGF's history, which stops while the data-driven filter runs, is the still view's
-    /// when the camera moves on.
-    pub svgf_still_handover: u32,
-    /// Data-driven: sigma of the direct light's colour test, in `colour_units` (standard
+    /// sigma of the direct light's colour test, in `colour_units` (standard
     /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
-    /// Data-driven: sigma of the indirect light's colour test (the thesis's 0.5).
+    /// sigma of the indirect light's colour test (the thesis's 0.5).
     pub sigma_indirect: f32,
     pub sigma_depth: f32,
     pub sigma_normal: f32,
     pub sigma_texture: f32,
     pub sigma_texture2: f32,
-    /// Data-driven: the indirect light's test on texture2, the albedo at the second hit
+    /// the indirect light's test on texture2, the albedo at the second hit
     /// (the thesis's; off by default: over a few samples the mean of a random bounce's
     /// albedo is noise, and the test refuses neighbours at random).
     pub texture2_test: bool,
@@ -220,40 +186,40 @@ pub struct FilterConfig {
     pub variance_scale: [f32; 5],
     pub depth_units: DepthUnits,
     pub colour_units: ColourUnits,
-    /// Data-driven: how the colour test weighs the channels of a difference (not in the
+    /// how the colour test weighs the channels of a difference (not in the
     /// thesis).
     pub colour_weights: ColourWeights,
-    /// Data-driven: filter the light divided by the albedo (the illumination), then multiply
+    /// filter the light divided by the albedo (the illumination), then multiply
     /// it back (not in the thesis).
     pub demodulate: bool,
-    /// Data-driven, variance units: each pixel's standard error taken over its 3x3
+    /// variance units: each pixel's standard error taken over its 3x3
     /// neighbourhood (the root of the mean of the squares), as SVGF blurs its variance: a few
     /// samples' variance is itself noisy (not in the thesis).
     pub error_blur: bool,
-    /// Data-driven, variance units: how the two pixels' standard errors combine (not in the
+    /// variance units: how the two pixels' standard errors combine (not in the
     /// thesis).
     pub error_pair: ErrorPair,
-    /// Data-driven: at a metallic pixel, whose light is a glossy reflection that turns with
+    /// at a metallic pixel, whose light is a glossy reflection that turns with
     /// the normal, the normal test's sigma is at most this times the lobe's GGX alpha
     /// (roughness squared, at least 0.01), blended by the metallic factor; 0 keeps
     /// `sigma_normal` everywhere, the thesis's test (not in the thesis).
     pub sigma_normal_lobe: f32,
-    /// Data-driven, in the frame: a pixel only some of whose samples hit a surface (a
+    /// in the frame: a pixel only some of whose samples hit a surface (a
     /// silhouette against the sky) is filtered as its hits alone (the sky's light taken out,
     /// the rest divided by the hits' share; the filtered light scaled back and the sky's
     /// added) where the frame knows every sample's sky (one sample per frame); off, or where
     /// it does not, the mixture is filtered with its hits' features (not in the thesis).
     pub sky_coverage: bool,
-    /// Data-driven, variance units: each pixel's filtered light is blended with its own by
+    /// variance units: each pixel's filtered light is blended with its own by
     /// their squared errors, estimated with Stein's unbiased risk estimate (SURE) and averaged
     /// over the pixel's `(2 sure_radius + 1)^2` neighbourhood, direct and indirect apart: where
     /// the filter moved the pixel further than its noise explains, its own light takes over
     /// (not in the thesis).
     pub sure: bool,
-    /// Data-driven, `sure`: the radius of the neighbourhood the risk estimates are averaged
+    /// `sure`: the radius of the neighbourhood the risk estimates are averaged
     /// over (0: the pixel's own).
     pub sure_radius: u32,
-    /// Data-driven, on the accumulated image of a still camera (and SVGF's handover to it):
+    /// on the accumulated image of a still camera (and SVGF's handover to it):
     /// the image is filtered again only once the epoch's accumulated frames have grown by this
     /// factor since it was last filtered, and shown as it was meanwhile, as offline renderers
     /// denoise every so many passes (not in the thesis), but for the light a pixel showed as
@@ -263,36 +229,13 @@ pub struct FilterConfig {
     /// times. At most 1 (0 by default) filters every frame. A change of the filter's
     /// configuration filters at once.
     pub refresh_growth: f32,
-    /// RPF: the passes' box widths, largest first (the paper's 55, 35, 17, 7).
-    pub rpf_boxes: Vec<u32>,
-    /// RPF: `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
-    /// paper's 0.002 for outdoor ones).
-    pub rpf_noise: f32,
-    /// RPF: the technical report's outlier step after each pass, the pixel's mean kept.
-    pub rpf_outliers: bool,
-    /// RPF: filter each sample's colour divided by its base colour, then multiply it back
-    /// (not in the paper).
-    pub rpf_demodulate: bool,
-    /// RPF: samples of the sky (camera rays that left the scene) pass through unfiltered and
-    /// are no pixel's neighbours (not in the paper).
-    pub rpf_sky: bool,
 }
 
-impl Default for FilterConfig {
+impl Default for DataDrivenConfig {
     fn default() -> Self {
         Self {
-            method: Method::None,
             kernel: 21,
             holes: false,
-            atrous_iterations: 5,
-            atrous_kernel: 3,
-            svgf_split: true,
-            svgf_normal_width: 16.0,
-            svgf_taa: true,
-            taa_alpha: crate::taa::ALPHA,
-            taa_gamma: crate::taa::GAMMA,
-            svgf_converge: true,
-            svgf_still_handover: 0,
             sigma_direct: 1.25,
             sigma_indirect: 4.0,
             sigma_depth: 0.5,
@@ -312,12 +255,213 @@ impl Default for FilterConfig {
             sure: false,
             sure_radius: 3,
             refresh_growth: 0.0,
-            rpf_boxes: vec![55, 35, 17, 7],
-            rpf_noise: 0.02,
-            rpf_outliers: true,
-            rpf_demodulate: false,
-            rpf_sky: true,
         }
+    }
+}
+
+/// `[frame.filter.svgf]`: SVGF, the spatio-temporal filter.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SvgfConfig {
+    /// a-trous iterations.
+    pub atrous_iterations: u32,
+    /// the a-trous kernel's width, 5 (the paper's B3 spline) or 3 (the linear
+    /// B-spline: a third of the taps; not in the paper). 3 by default: along camera paths as
+    /// good or better on every scene measured, in 0.6x the time (BENCHMARKS.md, "Seed 001").
+    pub atrous_kernel: u32,
+    /// integrate and filter direct and indirect light apart (the paper's two signals);
+    /// false filters their sum as one signal (not in the paper: about 40% fewer operations
+    /// per tap).
+    pub split: bool,
+    /// the reprojection's normal test. `k > 0` (16 by default) keeps a previous pixel
+    /// whose normal lies within `k (w + 0.01)` of this one's, `w` this pixel's normal width
+    /// (over its four neighbours, the smaller of each axis's two differences), as the paper's
+    /// authors' implementation tests against the normal's screen-space width: normal-mapped
+    /// foliage, whose normals change from pixel to pixel, keeps its history, a flat surface
+    /// is tested more tightly than by a cosine of 0.9. 0 keeps a previous pixel whose normal's
+    /// cosine with this one's is at least 0.9 (this filter's first test; not in the paper).
+    pub normal_width: f32,
+    /// temporal antialiasing of the output (the paper applies it after the filter;
+    /// [`crate::taa`]): each pixel blended with its reprojected previous output (weight 0.7),
+    /// clamped to this frame's 3x3 neighbourhood's mean plus and minus half a standard
+    /// deviation (in YCoCg of light compressed by its luminance). On by default (the paper's
+    /// last stage): along every orbit measured 15-45% less CIELUV error and 2.4-5x less
+    /// flicker, for 3-5 ms at 640x360.
+    pub taa: bool,
+    /// converge while the camera is still (not in the paper): a pixel whose motion
+    /// vector is 0 takes each frame into a plain mean of its history instead of at a weight of
+    /// 0.2, and its luminance test narrows with the mean's noise, so a still view converges
+    /// to the path tracer's image; a pixel that moves is filtered as the paper does
+    /// ([`crate::svgf`]). On by default: better at 32 and 128 still frames on every scene
+    /// measured, and a moving camera's frames are the same bit for bit.
+    pub converge: bool,
+    /// once the camera has been still for this many frames, the data-driven filter of
+    /// the accumulated image (with this configuration's data-driven parameters) takes over
+    /// until it moves again; 0 never (not in the paper). Needs `frame.accumulate`: the frame
+    /// gathers the features' statistics of every frame of a still camera (from each epoch's
+    /// first on, as the data-driven filter does: its silhouettes against the sky need every
+    /// sample's; the first is gathered by the second frame, so a camera that moves at every
+    /// frame gathers none), and
+    /// SVGF's history, which stops while the data-driven filter runs, is the still view's
+    /// when the camera moves on.
+    pub still_handover: u32,
+}
+
+impl Default for SvgfConfig {
+    fn default() -> Self {
+        Self {
+            atrous_iterations: 5,
+            atrous_kernel: 3,
+            split: true,
+            normal_width: 16.0,
+            taa: true,
+            converge: true,
+            still_handover: 0,
+        }
+    }
+}
+
+/// `[frame.filter.taa]`: temporal antialiasing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TaaConfig {
+    /// Temporal antialiasing (SVGF's last stage, and `method = "taa"`): this frame's weight in
+    /// the blend with the clamped history (0.3, chosen for SVGF's output; higher trails less
+    /// behind a moving camera and smooths less).
+    pub alpha: f32,
+    /// Temporal antialiasing: the half-width of the box the history is clamped to, in standard
+    /// deviations of this frame's 3x3 neighbourhood (0.5, chosen for SVGF's output; wider
+    /// keeps more of the history: smoother, and slower to follow a change).
+    pub gamma: f32,
+}
+
+impl Default for TaaConfig {
+    fn default() -> Self {
+        Self {
+            alpha: crate::taa::ALPHA,
+            gamma: crate::taa::GAMMA,
+        }
+    }
+}
+
+/// `[frame.filter.rpf]`: Random Parameter Filtering.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RpfConfig {
+    /// the passes' box widths, largest first (the paper's 55, 35, 17, 7).
+    pub boxes: Vec<u32>,
+    /// `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
+    /// paper's 0.002 for outdoor ones).
+    pub noise: f32,
+    /// the technical report's outlier step after each pass, the pixel's mean kept.
+    pub outliers: bool,
+    /// filter each sample's colour divided by its base colour, then multiply it back
+    /// (not in the paper).
+    pub demodulate: bool,
+    /// samples of the sky (camera rays that left the scene) pass through unfiltered and
+    /// are no pixel's neighbours (not in the paper).
+    pub sky: bool,
+}
+
+impl Default for RpfConfig {
+    fn default() -> Self {
+        Self {
+            boxes: vec![55, 35, 17, 7],
+            noise: 0.02,
+            outliers: true,
+            demodulate: false,
+            sky: true,
+        }
+    }
+}
+
+/// The flat keys `[frame.filter]` had before each method's settings got their own table, and
+/// where each is now: a file that sets one is refused, naming its new key.
+pub const MOVED: [(&str, &str); 35] = [
+    ("kernel", "data_driven.kernel"),
+    ("holes", "data_driven.holes"),
+    ("sigma_direct", "data_driven.sigma_direct"),
+    ("sigma_indirect", "data_driven.sigma_indirect"),
+    ("sigma_depth", "data_driven.sigma_depth"),
+    ("sigma_normal", "data_driven.sigma_normal"),
+    ("sigma_texture", "data_driven.sigma_texture"),
+    ("sigma_texture2", "data_driven.sigma_texture2"),
+    ("texture2_test", "data_driven.texture2_test"),
+    ("variance_scale", "data_driven.variance_scale"),
+    ("depth_units", "data_driven.depth_units"),
+    ("colour_units", "data_driven.colour_units"),
+    ("colour_weights", "data_driven.colour_weights"),
+    ("demodulate", "data_driven.demodulate"),
+    ("error_blur", "data_driven.error_blur"),
+    ("error_pair", "data_driven.error_pair"),
+    ("sigma_normal_lobe", "data_driven.sigma_normal_lobe"),
+    ("sky_coverage", "data_driven.sky_coverage"),
+    ("sure", "data_driven.sure"),
+    ("sure_radius", "data_driven.sure_radius"),
+    ("refresh_growth", "data_driven.refresh_growth"),
+    ("atrous_iterations", "svgf.atrous_iterations"),
+    ("atrous_kernel", "svgf.atrous_kernel"),
+    ("svgf_split", "svgf.split"),
+    ("svgf_normal_width", "svgf.normal_width"),
+    ("svgf_taa", "svgf.taa"),
+    ("svgf_converge", "svgf.converge"),
+    ("svgf_still_handover", "svgf.still_handover"),
+    ("taa_alpha", "taa.alpha"),
+    ("taa_gamma", "taa.gamma"),
+    ("rpf_boxes", "rpf.boxes"),
+    ("rpf_noise", "rpf.noise"),
+    ("rpf_outliers", "rpf.outliers"),
+    ("rpf_demodulate", "rpf.demodulate"),
+    ("rpf_sky", "rpf.sky"),
+];
+
+/// `[frame.filter]` as a file writes it: the tables, and any old flat key (refused).
+#[derive(Deserialize)]
+#[serde(default)]
+struct FilterFile {
+    method: Method,
+    data_driven: DataDrivenConfig,
+    svgf: SvgfConfig,
+    taa: TaaConfig,
+    rpf: RpfConfig,
+    #[serde(flatten)]
+    moved: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
+}
+
+impl Default for FilterFile {
+    fn default() -> Self {
+        let c = FilterConfig::default();
+        Self {
+            method: c.method,
+            data_driven: c.data_driven,
+            svgf: c.svgf,
+            taa: c.taa,
+            rpf: c.rpf,
+            moved: Default::default(),
+        }
+    }
+}
+
+impl TryFrom<FilterFile> for FilterConfig {
+    type Error = String;
+
+    fn try_from(f: FilterFile) -> Result<Self, String> {
+        if let Some(key) = f.moved.keys().next() {
+            return Err(match MOVED.iter().find(|(old, _)| old == key) {
+                Some((old, new)) => format!(
+                    "`frame.filter.{old}` has moved: it is `{new}` in `[frame.filter.{}]` now",
+                    new.split('.').next().unwrap_or_default()
+                ),
+                None => format!("unknown field `{key}` in `[frame.filter]`"),
+            });
+        }
+        Ok(Self {
+            method: f.method,
+            data_driven: f.data_driven,
+            svgf: f.svgf,
+            taa: f.taa,
+            rpf: f.rpf,
+        })
     }
 }
 
@@ -327,91 +471,139 @@ pub const MAX_KERNEL: u32 = 127;
 /// Widest neighbourhood the SURE blend averages its estimates over (`sure_radius`).
 pub const MAX_SURE_RADIUS: u32 = 32;
 
-impl FilterConfig {
-    /// Checks the parameters: an odd kernel of 1..=[`MAX_KERNEL`], positive finite sigmas,
-    /// finite non-negative variance scales, a method that is built.
+/// The accepted range of each numeric setting: what `validate()` checks and what the viewer's
+/// sliders span (one source for both).
+pub mod ranges {
+    use std::ops::RangeInclusive;
+
+    pub const KERNEL: RangeInclusive<u32> = 1..=super::MAX_KERNEL;
+    /// Every colour and feature sigma.
+    pub const SIGMA: RangeInclusive<f32> = 0.001..=1.0e6;
+    pub const SIGMA_NORMAL_LOBE: RangeInclusive<f32> = 0.0..=16.0;
+    pub const VARIANCE_SCALE: RangeInclusive<f32> = 0.0..=1000.0;
+    pub const SURE_RADIUS: RangeInclusive<u32> = 0..=super::MAX_SURE_RADIUS;
+    pub const REFRESH_GROWTH: RangeInclusive<f32> = 0.0..=16.0;
+    pub const ATROUS_ITERATIONS: RangeInclusive<u32> = 1..=crate::svgf::MAX_ITERATIONS;
+    pub const NORMAL_WIDTH: RangeInclusive<f32> = 0.0..=64.0;
+    pub const STILL_HANDOVER: RangeInclusive<u32> = 0..=1024;
+    pub const TAA_ALPHA: RangeInclusive<f32> = 0.01..=1.0;
+    pub const TAA_GAMMA: RangeInclusive<f32> = 0.05..=100.0;
+}
+
+/// `value` of `field` within `range` (NaN is not).
+fn within<T: PartialOrd + std::fmt::Display>(
+    field: &'static str,
+    value: T,
+    range: &std::ops::RangeInclusive<T>,
+) -> Result<(), FilterError> {
+    if range.contains(&value) {
+        Ok(())
+    } else {
+        FilterError::parameter(
+            field,
+            value,
+            format!("from {} to {}", range.start(), range.end()),
+        )
+    }
+}
+
+impl DataDrivenConfig {
+    /// Checks the parameters against [`ranges`] (the kernel odd too; the SURE blend in
+    /// variance units).
     pub fn validate(&self) -> Result<(), FilterError> {
-        if self.kernel.is_multiple_of(2) || self.kernel > MAX_KERNEL {
+        if self.kernel.is_multiple_of(2) {
             return FilterError::parameter(
-                "frame.filter.kernel",
+                "frame.filter.data_driven.kernel",
                 self.kernel,
                 format!("an odd width from 1 to {MAX_KERNEL}"),
             );
         }
-        if !(1..=crate::svgf::MAX_ITERATIONS).contains(&self.atrous_iterations) {
-            return FilterError::parameter(
-                "frame.filter.atrous_iterations",
-                self.atrous_iterations,
-                format!("from 1 to {}", crate::svgf::MAX_ITERATIONS),
-            );
-        }
+        within(
+            "frame.filter.data_driven.kernel",
+            self.kernel,
+            &ranges::KERNEL,
+        )?;
         for (field, v) in [
-            ("frame.filter.sigma_direct", self.sigma_direct),
-            ("frame.filter.sigma_indirect", self.sigma_indirect),
-            ("frame.filter.sigma_depth", self.sigma_depth),
-            ("frame.filter.sigma_normal", self.sigma_normal),
-            ("frame.filter.sigma_texture", self.sigma_texture),
-            ("frame.filter.sigma_texture2", self.sigma_texture2),
+            ("frame.filter.data_driven.sigma_direct", self.sigma_direct),
+            (
+                "frame.filter.data_driven.sigma_indirect",
+                self.sigma_indirect,
+            ),
+            ("frame.filter.data_driven.sigma_depth", self.sigma_depth),
+            ("frame.filter.data_driven.sigma_normal", self.sigma_normal),
+            ("frame.filter.data_driven.sigma_texture", self.sigma_texture),
+            (
+                "frame.filter.data_driven.sigma_texture2",
+                self.sigma_texture2,
+            ),
         ] {
-            if !(v.is_finite() && v > 0.0) {
-                return FilterError::parameter(field, v, "a positive number");
-            }
+            within(field, v, &ranges::SIGMA)?;
         }
-        if !(self.taa_alpha > 0.0 && self.taa_alpha <= 1.0) {
-            return FilterError::parameter("frame.filter.taa_alpha", self.taa_alpha, "in (0, 1]");
-        }
-        if !(self.taa_gamma > 0.0 && self.taa_gamma <= 100.0) {
-            return FilterError::parameter("frame.filter.taa_gamma", self.taa_gamma, "in (0, 100]");
-        }
-        if !(self.sigma_normal_lobe.is_finite() && self.sigma_normal_lobe >= 0.0) {
-            return FilterError::parameter(
-                "frame.filter.sigma_normal_lobe",
-                self.sigma_normal_lobe,
-                "finite and at least 0",
-            );
-        }
-        if !(self.refresh_growth.is_finite() && self.refresh_growth >= 0.0) {
-            return FilterError::parameter(
-                "frame.filter.refresh_growth",
-                self.refresh_growth,
-                "finite and at least 0",
-            );
-        }
-        if self.sure_radius > MAX_SURE_RADIUS {
-            return FilterError::parameter(
-                "frame.filter.sure_radius",
-                self.sure_radius,
-                format!("at most {MAX_SURE_RADIUS}"),
-            );
-        }
+        within(
+            "frame.filter.data_driven.sigma_normal_lobe",
+            self.sigma_normal_lobe,
+            &ranges::SIGMA_NORMAL_LOBE,
+        )?;
+        within(
+            "frame.filter.data_driven.refresh_growth",
+            self.refresh_growth,
+            &ranges::REFRESH_GROWTH,
+        )?;
+        within(
+            "frame.filter.data_driven.sure_radius",
+            self.sure_radius,
+            &ranges::SURE_RADIUS,
+        )?;
         if self.sure && self.colour_units != ColourUnits::Variance {
             return FilterError::parameter(
-                "frame.filter.sure",
+                "frame.filter.data_driven.sure",
                 self.sure,
                 "colour_units = \"variance\" (the risk needs the pixels' standard errors)",
             );
         }
-        if let Some(s) = self
-            .variance_scale
-            .iter()
-            .find(|s| !(s.is_finite() && **s >= 0.0))
-        {
-            return FilterError::parameter(
-                "frame.filter.variance_scale",
+        for s in self.variance_scale {
+            within(
+                "frame.filter.data_driven.variance_scale",
                 s,
-                "finite and at least 0",
-            );
+                &ranges::VARIANCE_SCALE,
+            )?;
         }
+        Ok(())
+    }
+}
+
+impl FilterConfig {
+    /// Checks each method's parameters (the data-driven filter's, SVGF's, the temporal
+    /// antialiasing's, RPF's) against [`ranges`].
+    pub fn validate(&self) -> Result<(), FilterError> {
+        self.data_driven.validate()?;
+        within(
+            "frame.filter.svgf.atrous_iterations",
+            self.svgf.atrous_iterations,
+            &ranges::ATROUS_ITERATIONS,
+        )?;
+        within(
+            "frame.filter.svgf.normal_width",
+            self.svgf.normal_width,
+            &ranges::NORMAL_WIDTH,
+        )?;
+        within(
+            "frame.filter.svgf.still_handover",
+            self.svgf.still_handover,
+            &ranges::STILL_HANDOVER,
+        )?;
+        within("frame.filter.taa.alpha", self.taa.alpha, &ranges::TAA_ALPHA)?;
+        within("frame.filter.taa.gamma", self.taa.gamma, &ranges::TAA_GAMMA)?;
         self.svgf_params().validate()?;
         self.rpf_params(0).validate()
     }
 
     /// The filter a frame runs after `still` frames of a still camera (the frames accumulated
     /// in the epoch, this one included): `method`, or the data-driven filter once SVGF hands
-    /// over (`svgf_still_handover`).
+    /// over (`svgf.still_handover`).
     pub fn method_after(&self, still: u32) -> Method {
         match self.method {
-            Method::Svgf if self.svgf_still_handover > 0 && still >= self.svgf_still_handover => {
+            Method::Svgf if self.svgf.still_handover > 0 && still >= self.svgf.still_handover => {
                 Method::DataDriven
             }
             m => m,
@@ -422,31 +614,31 @@ impl FilterConfig {
     /// in this epoch.
     pub fn gathers_features(&self) -> bool {
         self.method == Method::DataDriven
-            || (self.method == Method::Svgf && self.svgf_still_handover > 0)
+            || (self.method == Method::Svgf && self.svgf.still_handover > 0)
     }
 
     /// SVGF's parameters.
     pub fn svgf_params(&self) -> crate::SvgfParams {
         crate::SvgfParams {
-            iterations: self.atrous_iterations,
-            kernel: self.atrous_kernel,
-            split: self.svgf_split,
-            normal_width: self.svgf_normal_width,
-            taa: self.svgf_taa,
-            taa_alpha: self.taa_alpha,
-            taa_gamma: self.taa_gamma,
-            converge: self.svgf_converge,
+            iterations: self.svgf.atrous_iterations,
+            kernel: self.svgf.atrous_kernel,
+            split: self.svgf.split,
+            normal_width: self.svgf.normal_width,
+            taa: self.svgf.taa,
+            taa_alpha: self.taa.alpha,
+            taa_gamma: self.taa.gamma,
+            converge: self.svgf.converge,
         }
     }
 
     /// RPF's parameters, with the seed of its random draws.
     pub fn rpf_params(&self, seed: u64) -> crate::rpf::RpfParams {
         crate::rpf::RpfParams {
-            boxes: self.rpf_boxes.clone(),
-            noise: self.rpf_noise,
-            outliers: self.rpf_outliers,
-            demodulate: self.rpf_demodulate,
-            sky: self.rpf_sky,
+            boxes: self.rpf.boxes.clone(),
+            noise: self.rpf.noise,
+            outliers: self.rpf.outliers,
+            demodulate: self.rpf.demodulate,
+            sky: self.rpf.sky,
             seed,
         }
     }
@@ -459,37 +651,90 @@ mod tests {
     #[test]
     fn the_issue_fields_parse_and_bad_values_are_refused() {
         let c: FilterConfig = toml::from_str(
-            "method = \"data-driven\"\nkernel = 21\nholes = true\natrous_iterations = 5\n",
+            "method = \"data-driven\"\n[data_driven]\nkernel = 21\nholes = true\n\
+             [svgf]\natrous_iterations = 5\n",
         )
         .unwrap();
         assert_eq!(c.method, Method::DataDriven);
-        assert!(c.holes);
+        assert!(c.data_driven.holes);
         assert_eq!(c.validate(), Ok(()));
-        for (field, value) in [
-            ("kernel", "20"),
-            ("kernel", "0"),
-            ("sigma_depth", "-1.0"),
-            ("sigma_direct", "0.0"),
-            ("sigma_normal", "nan"),
-            ("variance_scale", "[1.0, -1.0, 1.0, 1.0, 1.0]"),
-            ("sigma_normal_lobe", "-1.0"),
-            ("sigma_normal_lobe", "inf"),
-            ("svgf_normal_width", "-16.0"),
-            ("svgf_normal_width", "nan"),
-            ("atrous_iterations", "0"),
-            ("atrous_kernel", "4"),
-            ("rpf_boxes", "[55, 34]"),
-            ("rpf_noise", "0.0"),
-            ("taa_alpha", "0.0"),
-            ("taa_gamma", "0.0"),
-            ("taa_gamma", "nan"),
-            ("taa_gamma", "inf"),
+        for (table, field, value) in [
+            ("data_driven", "kernel", "20"),
+            ("data_driven", "kernel", "0"),
+            ("data_driven", "sigma_depth", "-1.0"),
+            ("data_driven", "sigma_direct", "0.0"),
+            ("data_driven", "sigma_normal", "nan"),
+            (
+                "data_driven",
+                "variance_scale",
+                "[1.0, -1.0, 1.0, 1.0, 1.0]",
+            ),
+            ("data_driven", "sigma_normal_lobe", "-1.0"),
+            ("data_driven", "sigma_normal_lobe", "inf"),
+            ("svgf", "normal_width", "-16.0"),
+            ("svgf", "normal_width", "nan"),
+            ("svgf", "atrous_iterations", "0"),
+            ("svgf", "atrous_kernel", "4"),
+            ("rpf", "boxes", "[55, 34]"),
+            ("rpf", "noise", "0.0"),
+            ("taa", "alpha", "0.0"),
+            ("taa", "gamma", "0.0"),
+            ("taa", "gamma", "nan"),
+            ("taa", "gamma", "inf"),
         ] {
-            let c: FilterConfig = toml::from_str(&format!("{field} = {value}")).unwrap();
+            let c: FilterConfig = toml::from_str(&format!("[{table}]\n{field} = {value}")).unwrap();
             let e = c.validate().unwrap_err().to_string();
-            assert!(e.contains(field), "{field}: {e}");
+            assert!(
+                e.contains(&format!("frame.filter.{table}.{field}")),
+                "{field}: {e}"
+            );
         }
-        assert!(toml::from_str::<FilterConfig>("kernal = 3").is_err());
+        assert!(toml::from_str::<FilterConfig>("[data_driven]\nkernal = 3").is_err());
+        let e = toml::from_str::<FilterConfig>("kernal = 3")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("kernal"), "{e}");
+    }
+
+    /// Each flat key of before the tables is refused with a message naming its new key, and
+    /// the new key takes the value.
+    #[test]
+    fn an_old_flat_key_is_refused_naming_its_new_one() {
+        for (old, new) in MOVED {
+            let e = toml::from_str::<FilterConfig>(&format!("{old} = 1"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(old) && e.contains(new), "{old}: {e}");
+            let (table, key) = new.split_once('.').unwrap();
+            let value = match key {
+                "boxes" => "[7]",
+                "variance_scale" => "[2.0, 1.0, 1.0, 1.0, 1.0]",
+                "depth_units" => "\"scene\"",
+                "colour_units" => "\"linear\"",
+                "colour_weights" => "\"equal\"",
+                "error_pair" => "\"product\"",
+                _ => {
+                    let default = toml::to_string(&FilterConfig::default()).unwrap();
+                    let table_text = default.split(&format!("[{table}]")).nth(1).unwrap();
+                    let line = table_text
+                        .lines()
+                        .find(|l| l.starts_with(&format!("{key} = ")))
+                        .unwrap();
+                    match line.split(" = ").nth(1).unwrap() {
+                        "true" => "false",
+                        "false" => "true",
+                        v if v.contains('.') => "0.375",
+                        _ => "7",
+                    }
+                }
+            };
+            let c: FilterConfig = toml::from_str(&format!("[{table}]\n{key} = {value}")).unwrap();
+            assert_ne!(
+                c,
+                FilterConfig::default(),
+                "{new} = {value} changed nothing"
+            );
+        }
     }
 
     #[test]
@@ -500,7 +745,7 @@ mod tests {
         };
         assert!(!c.gathers_features());
         assert_eq!(c.method_after(1000), Method::Svgf);
-        c.svgf_still_handover = 8;
+        c.svgf.still_handover = 8;
         assert!(c.gathers_features());
         assert_eq!(c.method_after(7), Method::Svgf);
         assert_eq!(c.method_after(8), Method::DataDriven);

@@ -125,7 +125,7 @@ use glam::Vec3;
 use pathlight_core::color::luminance;
 use rayon::prelude::*;
 
-use crate::config::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, FilterConfig};
+use crate::config::{ColourUnits, ColourWeights, DataDrivenConfig, DepthUnits, ErrorPair};
 use crate::simd::{
     channels, dispatch, exp2_neg_in_range, finite, iota, luminance_lanes, store_first, ByGroups,
     F32xN, Groups, Isa, Kernel, LANES,
@@ -234,7 +234,7 @@ impl DataDriven {
     pub fn filter(
         &mut self,
         features: &Features,
-        config: &FilterConfig,
+        config: &DataDrivenConfig,
         out: &mut [Vec3],
     ) -> Result<(), FilterError> {
         config.validate()?;
@@ -323,7 +323,7 @@ impl DataDriven {
     /// sky and bad pixels. The padding (zeros, the depth NaN) is laid out when the layout
     /// changes and never written after.
     /// `sum`: the colour scales are squared errors ([`Scales::sum`]).
-    fn fill_planes(&mut self, f: &Features, layout: Layout, config: &FilterConfig, sum: bool) {
+    fn fill_planes(&mut self, f: &Features, layout: Layout, config: &DataDrivenConfig, sum: bool) {
         let (units, demodulate) = (config.colour_units, config.demodulate);
         let rows = f.height + 2 * layout.radius;
         if self.layout != Some((layout, f.height)) {
@@ -666,7 +666,7 @@ struct Scales {
 }
 
 impl Scales {
-    fn new(c: &FilterConfig) -> Self {
+    fn new(c: &DataDrivenConfig) -> Self {
         Self {
             direct: coefficient(c.sigma_direct),
             indirect: coefficient(c.sigma_indirect),

@@ -24,7 +24,10 @@ mod sure;
 pub mod svgf;
 pub mod taa;
 
-pub use config::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, FilterConfig, Method};
+pub use config::{
+    ranges, ColourUnits, ColourWeights, DataDrivenConfig, DepthUnits, ErrorPair, FilterConfig,
+    Method, RpfConfig, SvgfConfig, TaaConfig,
+};
 pub use data_driven::DataDriven;
 pub use features::Features;
 pub use svgf::{Svgf, SvgfFrame, SvgfParams};

@@ -136,14 +136,14 @@ impl RpfParams {
                 .any(|&b| b.is_multiple_of(2) || b > MAX_BOX)
         {
             return FilterError::parameter(
-                "frame.filter.rpf_boxes",
+                "frame.filter.rpf.boxes",
                 format!("{:?}", self.boxes),
                 format!("one or more odd widths from 1 to {MAX_BOX}"),
             );
         }
         if !(self.noise.is_finite() && self.noise > 0.0) {
             return FilterError::parameter(
-                "frame.filter.rpf_noise",
+                "frame.filter.rpf.noise",
                 self.noise.to_string(),
                 "a positive number",
             );

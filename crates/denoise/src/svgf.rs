@@ -140,17 +140,21 @@ impl SvgfParams {
     pub fn validate(&self) -> Result<(), FilterError> {
         if self.iterations > MAX_ITERATIONS {
             return FilterError::parameter(
-                "frame.filter.atrous_iterations",
+                "frame.filter.svgf.atrous_iterations",
                 self.iterations,
                 format!("at most {MAX_ITERATIONS}"),
             );
         }
         if !matches!(self.kernel, 3 | 5) {
-            return FilterError::parameter("frame.filter.atrous_kernel", self.kernel, "3 or 5");
+            return FilterError::parameter(
+                "frame.filter.svgf.atrous_kernel",
+                self.kernel,
+                "3 or 5",
+            );
         }
         if !(self.normal_width.is_finite() && self.normal_width >= 0.0) {
             return FilterError::parameter(
-                "frame.filter.svgf_normal_width",
+                "frame.filter.svgf.normal_width",
                 self.normal_width,
                 "finite and at least 0",
             );

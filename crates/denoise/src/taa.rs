@@ -29,7 +29,7 @@
 //! where they are consecutive pixels, two loads permuted where they lie on one row, gathers
 //! elsewhere; each row's output replaces its input in place (no copy); a row's values in
 //! YCoCg and their sums along it are worked out in one sweep. 3.3 -> 2.3 ms at 640x360
-//! (BENCHMARKS.md "Speed").
+//! (measured at a102cf4, 2026-11-28).
 
 use glam::{Vec2, Vec3};
 use pathlight_core::color::luminance;
@@ -49,7 +49,7 @@ fn pitch(width: usize) -> usize {
 }
 
 /// The weight of this frame's value in the blend (chosen on the orbits of the Cornell box and
-/// the garden among 0.1, 0.2 and 0.3, BENCHMARKS.md).
+/// the garden among 0.1, 0.2 and 0.3 at fbe1294, 2026-11-27).
 pub const ALPHA: f32 = 0.3;
 /// The history is clamped to the neighbourhood's mean plus and minus `GAMMA` standard
 /// deviations (chosen for SVGF's output among 0.35, 0.5, 0.75 and 1).

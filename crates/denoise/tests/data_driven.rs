@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 use pathlight_denoise::{
-    ColourUnits, ColourWeights, DataDriven, ErrorPair, Features, FilterConfig, FilterError, Method,
+    ColourUnits, ColourWeights, DataDriven, DataDrivenConfig, ErrorPair, Features, FilterError,
 };
 
 /// A frame's buffers, owned.
@@ -64,12 +64,12 @@ impl Frame {
         }
     }
 
-    fn filter(&self, config: &FilterConfig) -> Vec<Vec3> {
+    fn filter(&self, config: &DataDrivenConfig) -> Vec<Vec3> {
         self.filter_with(config, "widest")
     }
 
     /// With lanes no wider than `lanes` (`portable`, `avx2` or the widest).
-    fn filter_with(&self, config: &FilterConfig, lanes: &str) -> Vec<Vec3> {
+    fn filter_with(&self, config: &DataDrivenConfig, lanes: &str) -> Vec<Vec3> {
         let mut out = vec![Vec3::ZERO; self.width * self.height];
         let mut filter = DataDriven::new();
         filter.set_lanes(lanes);
@@ -80,24 +80,22 @@ impl Frame {
 
 /// The filter with colour differences relative to the light's luminance, whose weights on
 /// small noise are known (within 0.1% of 1): the synthetic tests below need that.
-fn data_driven() -> FilterConfig {
-    FilterConfig {
-        method: Method::DataDriven,
+fn data_driven() -> DataDrivenConfig {
+    DataDrivenConfig {
         colour_units: ColourUnits::Relative,
         sigma_direct: 0.75,
         sigma_indirect: 0.5,
-        ..FilterConfig::default()
+        ..DataDrivenConfig::default()
     }
 }
 
 /// The filter as pathlight configures it by default (colour differences in the light's
 /// standard errors), and [`data_driven`]: the known-answer tests whose answer holds whatever
 /// the colour test's weights run both.
-fn both() -> [FilterConfig; 2] {
+fn both() -> [DataDrivenConfig; 2] {
     [
-        FilterConfig {
-            method: Method::DataDriven,
-            ..FilterConfig::default()
+        DataDrivenConfig {
+            ..DataDrivenConfig::default()
         },
         data_driven(),
     ]
@@ -198,7 +196,7 @@ fn busy(width: usize, height: usize, seed: u64) -> Frame {
 }
 
 /// The thesis's formulas pixel by pixel, in f64 with the standard exp.
-fn reference(f: &Frame, c: &FilterConfig) -> Vec<Vec3> {
+fn reference(f: &Frame, c: &DataDrivenConfig) -> Vec<Vec3> {
     let k = |s: f32| 1.0 / (2.0 * s as f64 * s as f64);
     let r = (c.kernel / 2) as i64;
     let step = if c.holes { 2 } else { 1 };
@@ -394,7 +392,7 @@ fn agrees_with_the_formulas_evaluated_pixel_by_pixel() {
     {
         let ((kernel, holes, demodulate, colour_units, error_pair, texture2_test, lanes), weights) =
             case;
-        let c = FilterConfig {
+        let c = DataDrivenConfig {
             kernel,
             holes,
             demodulate,
@@ -440,7 +438,7 @@ fn a_constant_image_stays_constant() {
     let f = Frame::flat(50, 30, d, i);
     for holes in [false, true] {
         for config in both() {
-            let out = f.filter(&FilterConfig { holes, ..config });
+            let out = f.filter(&DataDrivenConfig { holes, ..config });
             for o in out {
                 assert!((o - (d + i)).abs().max_element() < 1e-5, "{o}");
             }
@@ -461,7 +459,7 @@ fn the_border_and_the_sky_are_nobodys_neighbours_however_loose_the_tests() {
             f.direct[y * 40 + x] = Vec3::splat(20.0);
         }
     }
-    let loose = FilterConfig {
+    let loose = DataDrivenConfig {
         sigma_direct: 1e4,
         sigma_indirect: 1e4,
         sigma_depth: 1e4,
@@ -475,13 +473,7 @@ fn the_border_and_the_sky_are_nobodys_neighbours_however_loose_the_tests() {
         (true, "avx2"),
         (true, "portable"),
     ] {
-        let out = f.filter_with(
-            &FilterConfig {
-                holes,
-                ..loose.clone()
-            },
-            lanes,
-        );
+        let out = f.filter_with(&DataDrivenConfig { holes, ..loose }, lanes);
         for (k, o) in out.iter().enumerate() {
             let want = if f.depth[k].is_finite() {
                 d + i
@@ -541,7 +533,7 @@ fn a_wire_one_pixel_wide_keeps_its_light() {
         f.direct[y * 41 + 20] = Vec3::splat(0.9);
     }
     for (kernel, holes) in [(7, true), (15, true), (21, true), (7, false)] {
-        let out = f.filter(&FilterConfig {
+        let out = f.filter(&DataDrivenConfig {
             kernel,
             holes,
             ..data_driven()
@@ -582,7 +574,7 @@ fn a_glossy_metal_keeps_its_reflections_apart() {
         "{left} {right}"
     );
     // The thesis's test, a dielectric, a rough metal: the edge is blurred.
-    let thesis = FilterConfig {
+    let thesis = DataDrivenConfig {
         sigma_normal_lobe: 0.0,
         ..data_driven()
     };
@@ -614,7 +606,7 @@ fn noise_on_a_flat_region_falls_by_the_window_size() {
         f.indirect[p] = Vec3::splat(0.1) + rng.normal3() * si as f32;
     }
     for (kernel, holes, taps) in [(7, false, 49.0), (21, false, 441.0), (21, true, 121.0)] {
-        let out = f.filter(&FilterConfig {
+        let out = f.filter(&DataDrivenConfig {
             kernel,
             holes,
             ..data_driven()
@@ -703,7 +695,7 @@ fn a_nan_or_infinite_sample_stays_in_its_pixel() {
 #[test]
 fn the_thread_count_changes_nothing() {
     let f = busy(91, 47, 3);
-    let c = FilterConfig {
+    let c = DataDrivenConfig {
         holes: true,
         ..data_driven()
     };
@@ -732,15 +724,15 @@ fn bad_parameters_and_buffers_are_refused() {
     let mut out = vec![Vec3::ZERO; 32];
     let mut filter = DataDriven::new();
     for c in [
-        FilterConfig {
+        DataDrivenConfig {
             kernel: 4,
             ..data_driven()
         },
-        FilterConfig {
+        DataDrivenConfig {
             sigma_texture: -0.1,
             ..data_driven()
         },
-        FilterConfig {
+        DataDrivenConfig {
             sigma_indirect: f32::NAN,
             ..data_driven()
         },
@@ -771,7 +763,7 @@ fn bad_parameters_and_buffers_are_refused() {
 fn a_filter_kept_across_frames_gives_what_a_new_one_gives() {
     let c = data_driven();
     let mut kept = DataDriven::new();
-    let mut run = |f: &Frame, c: &FilterConfig| {
+    let mut run = |f: &Frame, c: &DataDrivenConfig| {
         let mut out = vec![Vec3::ZERO; f.width * f.height];
         kept.filter(&f.features(), c, &mut out).unwrap();
         out
@@ -788,10 +780,7 @@ fn a_filter_kept_across_frames_gives_what_a_new_one_gives() {
             .collect::<Vec<_>>()
     };
     assert_eq!(bits(&run(&second, &c)), bits(&second.filter(&c)));
-    let small = FilterConfig {
-        kernel: 5,
-        ..c.clone()
-    };
+    let small = DataDrivenConfig { kernel: 5, ..c };
     let third = busy(20, 9, 3);
     assert_eq!(bits(&run(&third, &small)), bits(&third.filter(&small)));
     assert_eq!(bits(&run(&second, &c)), bits(&second.filter(&c)));
@@ -813,7 +802,7 @@ fn demodulation_keeps_a_texture_under_even_light() {
         }
     }
     let kept = f.filter(&data_driven());
-    let blurred = f.filter(&FilterConfig {
+    let blurred = f.filter(&DataDrivenConfig {
         demodulate: false,
         ..data_driven()
     });
@@ -848,7 +837,7 @@ fn variance_units_follow_the_noise() {
     // smoothed; at 4096 the step (100 standard errors) is kept where relative units blur it.
     let (w, h) = (64, 32);
     let image = |n: f32| shadow_step(w, h, n, 5);
-    let variance = FilterConfig {
+    let variance = DataDrivenConfig {
         colour_units: ColourUnits::Variance,
         sigma_direct: 3.0,
         sigma_indirect: 3.0,
@@ -895,16 +884,16 @@ fn blurred_errors_filter_a_pixel_whose_few_samples_agreed() {
     let centre = 16 * w + 16;
     f.direct[centre] = Vec3::splat(2.0);
     f.light_variance[centre] = [0.0, 0.0];
-    let variance = FilterConfig {
+    let variance = DataDrivenConfig {
         colour_units: ColourUnits::Variance,
         error_pair: ErrorPair::Product,
         sigma_direct: 3.0,
         sigma_indirect: 3.0,
         ..data_driven()
     };
-    let blur = FilterConfig {
+    let blur = DataDrivenConfig {
         error_blur: true,
-        ..variance.clone()
+        ..variance
     };
     let (plain, blurred) = (f.filter(&variance), f.filter(&blur));
     assert!(
@@ -938,7 +927,7 @@ fn a_firefly_joins_its_wall_when_the_errors_add() {
     let centre = 16 * w + 16;
     f.direct[centre] = Vec3::splat(2.0);
     f.light_variance[centre] = [1.5 * 1.5, 0.0];
-    let config = |error_pair| FilterConfig {
+    let config = |error_pair| DataDrivenConfig {
         colour_units: ColourUnits::Variance,
         error_pair,
         sigma_direct: 1.5,
@@ -995,7 +984,7 @@ fn texture2_noise_refuses_neighbours_only_with_the_thesis_test() {
     let inside = |img: &[Vec3]| spread(img, w, 10..31, 10..31);
     let before = inside(&f.indirect);
     let without = inside(&f.filter(&data_driven()));
-    let with = inside(&f.filter(&FilterConfig {
+    let with = inside(&f.filter(&DataDrivenConfig {
         texture2_test: true,
         ..data_driven()
     }));
@@ -1016,17 +1005,16 @@ fn the_sure_blend_keeps_a_step_a_loose_test_blurs_and_still_smooths_noise() {
     // their own light back, and the flat parts of a 4-sample image are still smoothed.
     let (w, h) = (64, 32);
     let image = |n: f32| shadow_step(w, h, n, 7);
-    let loose = FilterConfig {
-        method: Method::DataDriven,
+    let loose = DataDrivenConfig {
         colour_units: ColourUnits::Variance,
         sigma_direct: 30.0,
         sigma_indirect: 30.0,
-        ..FilterConfig::default()
+        ..DataDrivenConfig::default()
     };
-    let sure = FilterConfig {
+    let sure = DataDrivenConfig {
         sure: true,
         sure_radius: 3,
-        ..loose.clone()
+        ..loose
     };
     let step = |img: &[Vec3]| img[16 * w + w / 2].x - img[16 * w + w / 2 - 1].x;
     let many = image(4096.0);
@@ -1075,13 +1063,13 @@ fn the_sure_blend_keeps_a_step_a_loose_test_blurs_and_still_smooths_noise() {
     assert!(o.iter().all(|v| v.is_finite()));
     // The blend needs standard errors, and a bounded neighbourhood.
     for bad in [
-        FilterConfig {
+        DataDrivenConfig {
             colour_units: ColourUnits::Relative,
-            ..sure.clone()
+            ..sure
         },
-        FilterConfig {
+        DataDrivenConfig {
             sure_radius: 1000,
-            ..sure.clone()
+            ..sure
         },
     ] {
         let err = filter.filter(&many.features(), &bad, &mut o).unwrap_err();
@@ -1121,10 +1109,9 @@ fn albedo_weights_keep_a_step_in_the_channel_a_saturated_wall_shows() {
         }
         f
     };
-    let config = |weights| FilterConfig {
-        method: Method::DataDriven,
+    let config = |weights| DataDrivenConfig {
         colour_weights: weights,
-        ..FilterConfig::default()
+        ..DataDrivenConfig::default()
     };
     // The red step between the two middle columns, averaged over the rows (0.24 shown).
     let step = |img: &[Vec3]| {

@@ -333,28 +333,28 @@ fn bad_parameters_and_sizes_are_refused() {
                 boxes: vec![55, 34],
                 ..RpfParams::default()
             },
-            "rpf_boxes",
+            "rpf.boxes",
         ),
         (
             RpfParams {
                 boxes: vec![],
                 ..RpfParams::default()
             },
-            "rpf_boxes",
+            "rpf.boxes",
         ),
         (
             RpfParams {
                 noise: f32::NAN,
                 ..RpfParams::default()
             },
-            "rpf_noise",
+            "rpf.noise",
         ),
         (
             RpfParams {
                 noise: -0.02,
                 ..RpfParams::default()
             },
-            "rpf_noise",
+            "rpf.noise",
         ),
     ] {
         let e = filter(&set, &params, &NO, &|_| {}).unwrap_err().to_string();

@@ -786,28 +786,28 @@ fn bad_parameters_and_buffers_are_refused() {
                 kernel: 4,
                 ..SvgfParams::default()
             },
-            "frame.filter.atrous_kernel",
+            "frame.filter.svgf.atrous_kernel",
         ),
         (
             SvgfParams {
                 iterations: 17,
                 ..SvgfParams::default()
             },
-            "frame.filter.atrous_iterations",
+            "frame.filter.svgf.atrous_iterations",
         ),
         (
             SvgfParams {
                 normal_width: f32::NAN,
                 ..SvgfParams::default()
             },
-            "frame.filter.svgf_normal_width",
+            "frame.filter.svgf.normal_width",
         ),
         (
             SvgfParams {
                 normal_width: -1.0,
                 ..SvgfParams::default()
             },
-            "frame.filter.svgf_normal_width",
+            "frame.filter.svgf.normal_width",
         ),
     ] {
         let mut out = vec![Vec3::ZERO; 48];

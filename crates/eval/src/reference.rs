@@ -291,7 +291,7 @@ mod tests {
         frame.frame.reprojection.enabled = true;
         frame.frame.adaptive.max_spp = 7;
         frame.frame.accumulate = false;
-        frame.frame.filter.kernel = 5;
+        frame.frame.filter.data_driven.kernel = 5;
         assert_eq!(
             ReferenceCache::key(&scene, &base),
             ReferenceCache::key(&scene, &frame)

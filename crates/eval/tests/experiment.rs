@@ -343,7 +343,7 @@ fn an_rpf_configuration_filters_the_reference_tracers_samples_at_each_sample_bud
     spec.configurations[1].name = "rpf".into();
     let c = &mut spec.configurations[1].config;
     c.frame.filter.method = pathlight_render::denoise::Method::Rpf;
-    c.frame.filter.rpf_boxes = vec![15, 7];
+    c.frame.filter.rpf.boxes = vec![15, 7];
     for c in &mut spec.configurations {
         c.config.sampler = Default::default();
     }

@@ -300,7 +300,8 @@ mod tests {
     use super::*;
 
     /// A key the configuration does not have (a misspelling, or a removed one such as the
-    /// data-driven filter's `sigma_direction`, which nothing read) is refused, naming it.
+    /// data-driven filter's `sigma_direction`, which nothing read) is refused, naming it; a
+    /// moved one names where it is now.
     #[test]
     fn unknown_and_removed_keys_are_refused_by_name() {
         for (text, key) in [
@@ -309,6 +310,8 @@ mod tests {
                 "sigma_direction",
             ),
             ("spp = 1\nmax_bounce = 2\n", "max_bounce"),
+            // A filter key of before the per-method tables: its message names the new key.
+            ("[frame.filter]\nholes = true\n", "data_driven.holes"),
         ] {
             let e = Config::default().with_toml(text).unwrap_err();
             assert!(e.contains(key), "{e}");
@@ -343,7 +346,7 @@ mod tests {
         assert_eq!(c.frame.filter.method, pathlight_denoise::Method::Svgf);
         assert!(!c.frame.reprojection.enabled);
         // The still camera's handover to the data-driven filter needs the accumulated image.
-        assert!(c.frame.filter.svgf_still_handover > 0 && c.frame.accumulate);
+        assert!(c.frame.filter.svgf.still_handover > 0 && c.frame.accumulate);
         // The many-lights preset is the same with ReSTIR.
         let m = Config::realtime()
             .with_toml(include_str!(

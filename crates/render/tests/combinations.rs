@@ -27,9 +27,9 @@ const REPROJECTION: [&str; 2] = [
 const RESTIR: [&str; 2] = ["", "[frame.restir]\nenabled = true\ncandidates = 8\n"];
 const FILTER: [&str; 4] = [
     "",
-    "[frame.filter]\nmethod = \"data-driven\"\nkernel = 5\nholes = true\n",
-    "[frame.filter]\nmethod = \"svgf\"\natrous_kernel = 3\nsvgf_taa = true\n\
-     svgf_still_handover = 2\n",
+    "[frame.filter]\nmethod = \"data-driven\"\n[frame.filter.data_driven]\nkernel = 5\nholes = true\n",
+    "[frame.filter]\nmethod = \"svgf\"\n[frame.filter.svgf]\natrous_kernel = 3\ntaa = true\n\
+     still_handover = 2\n",
     "[frame.filter]\nmethod = \"taa\"\n",
 ];
 const CACHE: [&str; 2] = [

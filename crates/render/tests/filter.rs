@@ -82,7 +82,7 @@ fn the_filter_keeps_the_history_and_lowers_the_error() {
     (c.width, c.height) = (128, 96);
     let mut f = c.clone();
     f.frame.filter.method = Method::DataDriven;
-    f.frame.filter.kernel = 9;
+    f.frame.filter.data_driven.kernel = 9;
     let (plain, filtered) = (frames(&world, &c, 8), frames(&world, &f, 8));
     let reference = reference(&world, &c);
     let (before, after) = (
@@ -123,7 +123,7 @@ fn switching_the_filter_keeps_the_accumulation() {
     let r = p.render_frame(&world);
     assert_eq!((r.accumulated, r.epoch), (4, 0));
     assert!(r.passes.iter().any(|p| p.pass == FILTER));
-    c.frame.filter.kernel = 7;
+    c.frame.filter.data_driven.kernel = 7;
     p.set_config(&c);
     assert_eq!(p.render_frame(&world).accumulated, 5);
     c.frame.filter.method = Method::None;
@@ -138,7 +138,7 @@ fn switching_the_filter_keeps_the_accumulation() {
 fn the_filtered_image_does_not_depend_on_the_thread_count() {
     let world = cornell();
     let mut c = config(Method::DataDriven);
-    c.frame.filter.holes = true;
+    c.frame.filter.data_driven.holes = true;
     let image = |threads| in_pool(threads, || frames(&world, &c, 4).image());
     let one = image(1);
     assert_eq!(one, image(2));
@@ -154,10 +154,10 @@ fn the_filtered_image_does_not_depend_on_the_thread_count() {
 fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
     let world = cornell();
     let mut loose = config(Method::DataDriven);
-    loose.frame.filter.sigma_direct = 30.0;
-    loose.frame.filter.sigma_indirect = 30.0;
+    loose.frame.filter.data_driven.sigma_direct = 30.0;
+    loose.frame.filter.data_driven.sigma_indirect = 30.0;
     let mut sure = loose.clone();
-    sure.frame.filter.sure = true;
+    sure.frame.filter.data_driven.sure = true;
     let (blurred, blended) = (frames(&world, &loose, 64), frames(&world, &sure, 64));
     let plain = frames(&world, &config(Method::None), 64);
     let reference = reference(&world, &loose);
@@ -249,7 +249,7 @@ fn temporal_antialiasing_alone_blends_frames_toward_the_reference() {
     assert_eq!(blended, run(1));
 }
 
-/// SVGF hands over to the data-driven filter after `svgf_still_handover` frames of a still
+/// SVGF hands over to the data-driven filter after `svgf.still_handover` frames of a still
 /// camera: before, its frames are SVGF's bit for bit, from then on the data-driven filter's of
 /// the same accumulated image bit for bit. When the camera moves on, SVGF filters again with
 /// the history it had when it stopped, the still view's: the frame is that of SVGF stopped
@@ -268,7 +268,7 @@ fn svgf_hands_over_to_the_data_driven_filter_while_the_camera_is_still() {
             },
             ..config(method)
         };
-        c.frame.filter.svgf_still_handover = handover;
+        c.frame.filter.svgf.still_handover = handover;
         c
     };
     let mut svgf = Pipeline::new(at(0.0, Method::Svgf, 0));
@@ -291,7 +291,7 @@ fn svgf_hands_over_to_the_data_driven_filter_while_the_camera_is_still() {
         let c = at(
             0.05,
             Method::Svgf,
-            p.config().frame.filter.svgf_still_handover,
+            p.config().frame.filter.svgf.still_handover,
         );
         p.set_config(&c);
         p.render_frame(&world);
@@ -311,7 +311,7 @@ fn a_still_view_is_filtered_again_as_its_frames_grow() {
     let world = cornell();
     let with = |growth: f32| {
         let mut c = config(Method::DataDriven);
-        c.frame.filter.refresh_growth = growth;
+        c.frame.filter.data_driven.refresh_growth = growth;
         c
     };
     let (mut every, mut once, mut grown) = (
@@ -354,14 +354,14 @@ fn a_still_view_is_filtered_again_as_its_frames_grow() {
     assert!(through > 0, "the light source passes through");
     // A new configuration filters at once, and so does a camera move (a new epoch).
     let mut c = with(1.25);
-    c.frame.filter.kernel = 7;
+    c.frame.filter.data_driven.kernel = 7;
     let mut moved = c.clone();
     moved.camera.look_from = Some([0.05, 1.0, 3.5]);
     for (c, accumulated) in [(c, 13), (moved, 1)] {
         for p in [&mut every, &mut grown] {
-            let growth = p.config().frame.filter.refresh_growth;
+            let growth = p.config().frame.filter.data_driven.refresh_growth;
             let mut c = c.clone();
-            c.frame.filter.refresh_growth = growth;
+            c.frame.filter.data_driven.refresh_growth = growth;
             p.set_config(&c);
             assert_eq!(p.render_frame(&world).accumulated, accumulated);
         }
@@ -387,10 +387,13 @@ fn between_refreshes_a_pixel_keeps_its_own_light_fresh() {
         },
         ..config(Method::DataDriven)
     };
-    c.frame.filter.sure = true;
-    c.frame.filter.refresh_growth = 1.25;
+    c.frame.filter.data_driven.sure = true;
+    c.frame.filter.data_driven.refresh_growth = 1.25;
     // A colour test far too loose, so that the blend gives many pixels their own light back.
-    (c.frame.filter.sigma_direct, c.frame.filter.sigma_indirect) = (30.0, 30.0);
+    (
+        c.frame.filter.data_driven.sigma_direct,
+        c.frame.filter.data_driven.sigma_indirect,
+    ) = (30.0, 30.0);
     let mut p = Pipeline::new(c);
     let light = |p: &Pipeline| {
         (

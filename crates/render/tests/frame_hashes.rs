@@ -103,18 +103,18 @@ const CASES: [(&str, &str); 14] = [
     ("restir", "[frame.restir]\nenabled = true\n"),
     (
         "data-driven",
-        "[frame.filter]\nmethod = \"data-driven\"\nkernel = 7\nholes = true\nsure = true\n",
+        "[frame.filter]\nmethod = \"data-driven\"\n[frame.filter.data_driven]\nkernel = 7\nholes = true\nsure = true\n",
     ),
     (
         "restir-svgf",
-        "[frame.restir]\nenabled = true\n[frame.filter]\nmethod = \"svgf\"\natrous_kernel = 5\n\
-         svgf_taa = false\nsvgf_converge = false\n",
+        "[frame.restir]\nenabled = true\n[frame.filter]\nmethod = \"svgf\"\n[frame.filter.svgf]\natrous_kernel = 5\n\
+         taa = false\nconverge = false\n",
     ),
     // `experiments/realtime.toml`'s settings when this test was written.
     (
         "preset",
-        "[frame]\naccumulate = true\n[frame.filter]\nmethod = \"svgf\"\natrous_kernel = 3\n\
-         svgf_taa = true\nsvgf_converge = true\nsvgf_still_handover = 4\nholes = true\n\
+        "[frame]\naccumulate = true\n[frame.filter]\nmethod = \"svgf\"\n[frame.filter.svgf]\natrous_kernel = 3\n\
+         taa = true\nconverge = true\nstill_handover = 4\n[frame.filter.data_driven]\nholes = true\n\
          sure = true\nrefresh_growth = 1.25\n",
     ),
     ("texture-cache", ""),

@@ -498,20 +498,26 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
     };
     tuned.frame.filter = pathlight_denoise::FilterConfig {
         method: pathlight_denoise::Method::None,
-        kernel: 7,
-        holes: true,
-        atrous_iterations: 3,
-        atrous_kernel: 3,
-        sigma_normal_lobe: 2.0,
-        sky_coverage: false,
-        svgf_normal_width: 4.0,
-        svgf_taa: true,
-        svgf_converge: true,
-        svgf_still_handover: 1,
-        sure: true,
-        sure_radius: 5,
-        refresh_growth: 1.25,
-        colour_weights: pathlight_denoise::ColourWeights::Equal,
+        data_driven: pathlight_denoise::DataDrivenConfig {
+            kernel: 7,
+            holes: true,
+            sigma_normal_lobe: 2.0,
+            sky_coverage: false,
+            sure: true,
+            sure_radius: 5,
+            refresh_growth: 1.25,
+            colour_weights: pathlight_denoise::ColourWeights::Equal,
+            ..Default::default()
+        },
+        svgf: pathlight_denoise::SvgfConfig {
+            atrous_iterations: 3,
+            atrous_kernel: 3,
+            normal_width: 4.0,
+            taa: true,
+            converge: true,
+            still_handover: 1,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let run = |cfg: &Config| {

@@ -4,7 +4,9 @@
 use eframe::egui;
 use pathlight_render::bsdf::Microfacet;
 use pathlight_render::config::Tonemap;
-use pathlight_render::denoise::{ColourUnits, ColourWeights, DepthUnits, ErrorPair, Method};
+use pathlight_render::denoise::{
+    ranges as filter_ranges, ColourUnits, ColourWeights, DepthUnits, ErrorPair, Method,
+};
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::{DisplayMode, View};
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
@@ -521,41 +523,58 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
             ui.selectable_value(&mut f.method, Method::Taa, "taa (antialiasing)");
         });
     ui.add_enabled_ui(
-        f.method == Method::Taa || (f.method == Method::Svgf && f.svgf_taa),
+        f.method == Method::Taa || (f.method == Method::Svgf && f.svgf.taa),
         |ui| {
-            ui.add(egui::Slider::new(&mut f.taa_alpha, 0.05..=1.0).text("antialiasing weight"))
-                .on_hover_text("This frame's weight in the temporal antialiasing's blend");
-            ui.add(egui::Slider::new(&mut f.taa_gamma, 0.1..=4.0).text("antialiasing box"))
-                .on_hover_text(
-                    "The box the history is clamped to, in standard deviations of the \
+            ui.add(
+                egui::Slider::new(&mut f.taa.alpha, filter_ranges::TAA_ALPHA)
+                    .text("antialiasing weight"),
+            )
+            .on_hover_text("This frame's weight in the temporal antialiasing's blend");
+            ui.add(
+                egui::Slider::new(&mut f.taa.gamma, filter_ranges::TAA_GAMMA)
+                    .logarithmic(true)
+                    .text("antialiasing box"),
+            )
+            .on_hover_text(
+                "The box the history is clamped to, in standard deviations of the \
                      neighbourhood: wider keeps more history",
-                );
+            );
         },
     );
     ui.add_enabled_ui(f.method == Method::Svgf, |ui| {
-        ui.add(egui::Slider::new(&mut f.atrous_iterations, 1..=8).text("a-trous iterations"));
+        ui.add(
+            egui::Slider::new(
+                &mut f.svgf.atrous_iterations,
+                filter_ranges::ATROUS_ITERATIONS,
+            )
+            .text("a-trous iterations"),
+        );
         ui.horizontal(|ui| {
             ui.label("a-trous kernel");
-            ui.radio_value(&mut f.atrous_kernel, 5, "5x5 (the paper's)");
-            ui.radio_value(&mut f.atrous_kernel, 3, "3x3");
+            ui.radio_value(&mut f.svgf.atrous_kernel, 5, "5x5 (the paper's)");
+            ui.radio_value(&mut f.svgf.atrous_kernel, 3, "3x3");
         });
         ui.checkbox(
-            &mut f.svgf_split,
+            &mut f.svgf.split,
             "direct and indirect light apart (the paper; off: their sum, one signal)",
         );
-        ui.add(egui::Slider::new(&mut f.svgf_normal_width, 0.0..=32.0).text("history normal test"))
-            .on_hover_text(
-                "A previous normal is kept within k times the pixel's normal width plus 0.01 \
+        ui.add(
+            egui::Slider::new(&mut f.svgf.normal_width, filter_ranges::NORMAL_WIDTH)
+                .text("history normal test"),
+        )
+        .on_hover_text(
+            "A previous normal is kept within k times the pixel's normal width plus 0.01 \
                  (16: the authors' implementation); 0: a cosine of at least 0.9",
-            );
-        ui.checkbox(&mut f.svgf_taa, "temporal antialiasing after it");
-        ui.checkbox(&mut f.svgf_converge, "converge when still")
+        );
+        ui.checkbox(&mut f.svgf.taa, "temporal antialiasing after it");
+        ui.checkbox(&mut f.svgf.converge, "converge when still")
             .on_hover_text(
                 "Not in the paper: a pixel that has not moved takes its frames into a plain \
                  mean and its luminance test narrows with the mean's noise",
             );
         ui.add(
-            egui::Slider::new(&mut f.svgf_still_handover, 0..=64)
+            egui::Slider::new(&mut f.svgf.still_handover, filter_ranges::STILL_HANDOVER)
+                .logarithmic(true)
                 .text("hand over when still (frames)"),
         )
         .on_hover_text(
@@ -565,44 +584,61 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         );
     });
     ui.add_enabled_ui(f.gathers_features(), |ui| {
-        let mut radius = f.kernel / 2;
-        ui.add(egui::Slider::new(&mut radius, 0..=27).text("kernel radius (width 2r+1)"));
-        f.kernel = 2 * radius + 1;
-        ui.checkbox(&mut f.holes, "with holes (every other pixel)");
+        let mut radius = f.data_driven.kernel / 2;
+        ui.add(
+            egui::Slider::new(&mut radius, 0..=filter_ranges::KERNEL.end() / 2)
+                .text("kernel radius (width 2r+1)"),
+        );
+        f.data_driven.kernel = 2 * radius + 1;
+        ui.checkbox(&mut f.data_driven.holes, "with holes (every other pixel)");
         let sigma = |ui: &mut egui::Ui, v: &mut f32, what: &str| {
             ui.add(
-                egui::Slider::new(v, 0.01..=10.0)
+                egui::Slider::new(v, filter_ranges::SIGMA)
                     .logarithmic(true)
                     .text(what),
             );
         };
-        sigma(ui, &mut f.sigma_direct, "sigma direct light");
-        sigma(ui, &mut f.sigma_indirect, "sigma indirect light");
-        sigma(ui, &mut f.sigma_depth, "sigma depth");
-        sigma(ui, &mut f.sigma_normal, "sigma normal");
-        ui.add(
-            egui::Slider::new(&mut f.sigma_normal_lobe, 0.0..=4.0)
-                .text("sigma normal of metal (x alpha)"),
+        sigma(ui, &mut f.data_driven.sigma_direct, "sigma direct light");
+        sigma(
+            ui,
+            &mut f.data_driven.sigma_indirect,
+            "sigma indirect light",
         );
-        sigma(ui, &mut f.sigma_texture, "sigma texture");
-        ui.checkbox(&mut f.texture2_test, "texture2 test (thesis)");
-        ui.add_enabled_ui(f.texture2_test, |ui| {
-            sigma(ui, &mut f.sigma_texture2, "sigma texture2");
+        sigma(ui, &mut f.data_driven.sigma_depth, "sigma depth");
+        sigma(ui, &mut f.data_driven.sigma_normal, "sigma normal");
+        ui.add(
+            egui::Slider::new(
+                &mut f.data_driven.sigma_normal_lobe,
+                filter_ranges::SIGMA_NORMAL_LOBE,
+            )
+            .text("sigma normal of metal (x alpha)"),
+        );
+        sigma(ui, &mut f.data_driven.sigma_texture, "sigma texture");
+        ui.checkbox(&mut f.data_driven.texture2_test, "texture2 test (thesis)");
+        ui.add_enabled_ui(f.data_driven.texture2_test, |ui| {
+            sigma(ui, &mut f.data_driven.sigma_texture2, "sigma texture2");
         });
         for (i, name) in ["depth", "normal", "texture", "direction", "texture2"]
             .into_iter()
             .enumerate()
         {
             ui.add(
-                egui::Slider::new(&mut f.variance_scale[i], 0.0..=100.0)
-                    .logarithmic(true)
-                    .text(format!("variance scale {name}")),
+                egui::Slider::new(
+                    &mut f.data_driven.variance_scale[i],
+                    filter_ranges::VARIANCE_SCALE,
+                )
+                .logarithmic(true)
+                .text(format!("variance scale {name}")),
             );
         }
         ui.horizontal(|ui| {
-            ui.radio_value(&mut f.depth_units, DepthUnits::Relative, "depth relative");
             ui.radio_value(
-                &mut f.depth_units,
+                &mut f.data_driven.depth_units,
+                DepthUnits::Relative,
+                "depth relative",
+            );
+            ui.radio_value(
+                &mut f.data_driven.depth_units,
                 DepthUnits::Scene,
                 "depth in scene units",
             );
@@ -610,18 +646,30 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
             ui.label("colour differences");
             ui.radio_value(
-                &mut f.colour_units,
+                &mut f.data_driven.colour_units,
                 ColourUnits::Variance,
                 "in standard errors",
             );
-            ui.radio_value(&mut f.colour_units, ColourUnits::Relative, "relative");
-            ui.radio_value(&mut f.colour_units, ColourUnits::Linear, "linear (thesis)");
+            ui.radio_value(
+                &mut f.data_driven.colour_units,
+                ColourUnits::Relative,
+                "relative",
+            );
+            ui.radio_value(
+                &mut f.data_driven.colour_units,
+                ColourUnits::Linear,
+                "linear (thesis)",
+            );
         });
         ui.horizontal(|ui| {
             ui.label("colour channels");
-            ui.radio_value(&mut f.colour_weights, ColourWeights::Equal, "alike");
             ui.radio_value(
-                &mut f.colour_weights,
+                &mut f.data_driven.colour_weights,
+                ColourWeights::Equal,
+                "alike",
+            );
+            ui.radio_value(
+                &mut f.data_driven.colour_weights,
                 ColourWeights::Albedo,
                 "by the albedo",
             )
@@ -630,37 +678,52 @@ fn filter(c: &mut pathlight_render::Config, ui: &mut egui::Ui) {
                      L(a))^2: the test sees the light as the pixel shows it (not in the thesis)",
             );
         });
-        ui.add_enabled_ui(f.colour_units == ColourUnits::Variance, |ui| {
+        ui.add_enabled_ui(f.data_driven.colour_units == ColourUnits::Variance, |ui| {
             ui.horizontal(|ui| {
                 ui.label("two pixels' errors");
-                ui.radio_value(&mut f.error_pair, ErrorPair::Sum, "added in squares");
-                ui.radio_value(&mut f.error_pair, ErrorPair::Product, "multiplied");
+                ui.radio_value(
+                    &mut f.data_driven.error_pair,
+                    ErrorPair::Sum,
+                    "added in squares",
+                );
+                ui.radio_value(
+                    &mut f.data_driven.error_pair,
+                    ErrorPair::Product,
+                    "multiplied",
+                );
             });
         });
-        ui.checkbox(&mut f.demodulate, "demodulate by the albedo");
-        ui.checkbox(&mut f.sky_coverage, "silhouettes: their hits alone");
+        ui.checkbox(&mut f.data_driven.demodulate, "demodulate by the albedo");
+        ui.checkbox(
+            &mut f.data_driven.sky_coverage,
+            "silhouettes: their hits alone",
+        );
         ui.add_enabled(
-            f.colour_units == ColourUnits::Variance,
+            f.data_driven.colour_units == ColourUnits::Variance,
             egui::Checkbox::new(
-                &mut f.error_blur,
+                &mut f.data_driven.error_blur,
                 "standard errors over the 3x3 surface (not in the thesis)",
             ),
         );
-        ui.add_enabled_ui(f.colour_units == ColourUnits::Variance, |ui| {
-            ui.checkbox(&mut f.sure, "blend with own light by SURE")
+        ui.add_enabled_ui(f.data_driven.colour_units == ColourUnits::Variance, |ui| {
+            ui.checkbox(&mut f.data_driven.sure, "blend with own light by SURE")
                 .on_hover_text(
                     "each pixel's filtered light blended with its own by their errors \
                      estimated with Stein's unbiased risk estimate (not in the thesis; the \
                      display mode sure-share shows the blend)",
                 );
             ui.add_enabled(
-                f.sure,
-                egui::Slider::new(&mut f.sure_radius, 0..=8).text("SURE radius"),
+                f.data_driven.sure,
+                egui::Slider::new(&mut f.data_driven.sure_radius, filter_ranges::SURE_RADIUS)
+                    .text("SURE radius"),
             );
         });
         ui.add(
-            egui::Slider::new(&mut f.refresh_growth, 0.0..=2.0)
-                .text("filter again after the frames grow (x)"),
+            egui::Slider::new(
+                &mut f.data_driven.refresh_growth,
+                filter_ranges::REFRESH_GROWTH,
+            )
+            .text("filter again after the frames grow (x)"),
         )
         .on_hover_text(
             "Not in the thesis: a still view is filtered again only once its accumulated \

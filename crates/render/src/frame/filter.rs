@@ -45,7 +45,7 @@
 //!   bit, so a camera that moves at every frame gathers nothing (the pass along an orbit at
 //!   640x360: the 2.4-2.5 ms gathering gone, the features read from the frame's larger
 //!   buffers 1.6-1.9 ms slower).
-//! - **SVGF handing over while still** (`svgf_still_handover`, not in the thesis or SVGF's
+//! - **SVGF handing over while still** (`svgf.still_handover`, not in the thesis or SVGF's
 //!   paper): with SVGF, once the camera has been still for that many frames the data-driven
 //!   filter of the accumulated image runs instead, until the camera moves (a new epoch). The
 //!   features' statistics hold every frame of the epoch, from its first on, as for the
@@ -358,7 +358,7 @@ impl Filter {
             && self.filtered.as_ref().is_some_and(|f| {
                 f.epoch == epoch
                     && f.config == *config
-                    && (frames as f32) < f.frames as f32 * config.refresh_growth
+                    && (frames as f32) < f.frames as f32 * config.data_driven.refresh_growth
             });
         let run = (traced || !svgf).then(|| {
             if stays {
@@ -436,8 +436,8 @@ impl Filter {
             }
             Method::Svgf => self.run_svgf(config, history, gbuffer, lighting),
             Method::Taa => {
-                self.taa.set_alpha(config.taa_alpha);
-                self.taa.set_gamma(config.taa_gamma);
+                self.taa.set_alpha(config.taa.alpha);
+                self.taa.set_gamma(config.taa.gamma);
                 self.run_taa(history, gbuffer);
                 Ok(())
             }
@@ -541,10 +541,10 @@ impl Filter {
         self.roughness.resize(n, 0.0);
         self.metallic.resize(n, 0.0);
         self.coverage.resize(n, (1.0, Vec3::ZERO));
-        let split = config.sky_coverage;
+        let split = config.data_driven.sky_coverage;
         // The light's variance as the colour test measures it: the luminance's, or the
         // channels' mean with the channel weights.
-        let measure: fn(Vec3) -> f32 = match config.colour_weights {
+        let measure: fn(Vec3) -> f32 = match config.data_driven.colour_weights {
             ColourWeights::Equal => luminance,
             ColourWeights::Albedo => |v| v.element_sum() / 3.0,
         };
@@ -626,7 +626,7 @@ impl Filter {
             metallic: &self.metallic,
         };
         self.data_driven
-            .filter(&features, config, &mut self.image)?;
+            .filter(&features, &config.data_driven, &mut self.image)?;
         if split {
             self.image
                 .par_iter_mut()
@@ -634,7 +634,7 @@ impl Filter {
                 .filter(|(_, (share, _))| *share != 1.0)
                 .for_each(|(o, (share, sky))| *o = *o * *share + *sky);
         }
-        if config.refresh_growth > 1.0 {
+        if config.data_driven.refresh_growth > 1.0 {
             self.keep_refresh(history);
         }
         Ok(())
@@ -830,10 +830,13 @@ mod tests {
         let (w, h) = (16, 6);
         let config = FilterConfig {
             method: pathlight_denoise::Method::DataDriven,
-            kernel: 7,
-            sigma_direct: 4.0,
-            sigma_indirect: 4.0,
-            sky_coverage,
+            data_driven: pathlight_denoise::DataDrivenConfig {
+                kernel: 7,
+                sigma_direct: 4.0,
+                sigma_indirect: 4.0,
+                sky_coverage,
+                ..Default::default()
+            },
             ..FilterConfig::default()
         };
         let mut filter = Filter::default();
@@ -876,7 +879,10 @@ mod tests {
         let (w, h) = (24, 10);
         let config = FilterConfig {
             method: pathlight_denoise::Method::DataDriven,
-            kernel: 7,
+            data_driven: pathlight_denoise::DataDrivenConfig {
+                kernel: 7,
+                ..Default::default()
+            },
             ..FilterConfig::default()
         };
         let mut gbuffer = GBuffer::default();
