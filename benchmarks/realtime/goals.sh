@@ -33,8 +33,15 @@ configs() {
   echo "sun-preset-interior-640x360|2|$APT --width 640 --height 360 --config experiments/realtime-sun.toml"
 }
 
+# The plain pipeline's configurations say so to builds that choose a preset by default (those
+# with --plain); older builds ran the plain pipeline without a configuration.
+plain() { # build name
+  case "$2" in plain-*) "$1" bench frame --help 2>/dev/null | grep -q -- '--plain' && echo --plain ;; esac
+}
+
 frame() { # build name threads args...
   b=$1; n=$2; t=$3; shift 3
+  set -- "$@" $(plain "$b" "$n")
   # (A build older than the floor measures no floor: its fields are then empty.)
   $b bench frame "$@" --threads "$t" --frames 60 --json 2>/dev/null | tail -1 |
     python3 -c "import json,sys; d=json.loads(sys.stdin.read()); \
@@ -45,6 +52,7 @@ d.get('frame_over_floor') and round(d['frame_over_floor'], 2))"
 
 stalls() { # build name args...
   b=$1; n=$2; shift 2
+  set -- "$@" $(plain "$b" "$n")
   $b play "$@" --path orbit --frames "$FRAMES" --quiet --json 2>/dev/null | tail -1 |
     python3 -c "import json,sys; d=json.loads(sys.stdin.read()); \
 print('stalls $n', '$b', 'median', round(d['ms_per_frame'], 1), 'first', \

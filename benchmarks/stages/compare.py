@@ -26,6 +26,17 @@ CONFIGS = [
 ]
 
 
+def plain(binary, args):
+    """`--plain` for the configuration without arguments, where the binary has it (builds that
+    choose a preset when given no configuration)."""
+    if args:
+        return []
+    help_text = subprocess.run(
+        [binary, "bench", "frame", "--help"], capture_output=True, text=True
+    ).stdout
+    return ["--plain"] if "--plain" in help_text else []
+
+
 def frame_ms(binary, args, frames):
     out = subprocess.run(
         [binary, "bench", "frame", "--frames", str(frames), "--json", *args],
@@ -55,7 +66,7 @@ def main():
         for r in range(rounds):
             order = [(before, b), (after, a)] if r % 2 == 0 else [(after, a), (before, b)]
             for binary, out in order:
-                out.append(frame_ms(binary, args + rest, frames))
+                out.append(frame_ms(binary, args + plain(binary, args) + rest, frames))
         ratios = [y / x for x, y in zip(b, a)]
         print(
             f"{name:14} {statistics.median(b):10.2f} {statistics.median(a):10.2f} "

@@ -535,13 +535,21 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
         bail!("--orbit {}: must be finite", args.orbit);
     }
     let config = args.settings.apply(Config::realtime())?;
-    check_realtime(&config)?;
     let pool = crate::terminal::thread_pool(args.threads)?;
     let setup = Instant::now();
     let path = args.scene.scene.as_deref();
     let scene = pathlight_scene::load(path, &args.scene.load_options())?;
     let name = scene.name.clone();
     let world = pool.install(|| World::new(scene, config.light_selection));
+    let (config, choice) = args.settings.for_scene(&world.lights)?;
+    check_realtime(&config)?;
+    if let Some(c) = &choice {
+        eprintln!(
+            "preset: {} ({}; --plain for none)",
+            c.preset.name(),
+            c.reason
+        );
+    }
     let setup_ms = setup.elapsed().as_secs_f64() * 1e3;
     let total = args.frames + WARM_UP_FRAMES;
     let orbit = CameraPath {
@@ -586,6 +594,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
             "{}",
             json!({
                 "scene": name,
+                "preset": crate::config_args::choice_json(&choice),
                 "width": config.width,
                 "height": config.height,
                 "spp": config.spp,

@@ -12,6 +12,8 @@ use pathlight_render::denoise::Method;
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::DisplayMode;
 use pathlight_render::frame::views;
+use pathlight_render::light::Lights;
+use pathlight_render::preset::{self, Choice, Preset};
 use pathlight_render::sampler::SamplerKind;
 use pathlight_render::Config;
 
@@ -25,6 +27,14 @@ pub struct ConfigArgs {
     /// options below override it.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
+
+    /// The plain path tracer, every technique off, instead of the preset the scene's lights
+    /// call for (`view`, `play` and `bench frame` without --config or a technique's flag
+    /// choose one: `info` says which and why); for references, experiments and frame hashes.
+    /// A --config file starts from the plain pipeline unless its `preset` key names another
+    /// (`"auto"`: the rule's). `render` is always the plain path tracer.
+    #[arg(long)]
+    pub plain: bool,
 
     /// Image width in pixels.
     #[arg(long, value_name = "W")]
@@ -287,8 +297,9 @@ fn parse_display() -> impl clap::builder::TypedValueParser<Value = DisplayMode> 
         .map(|name| name.parse::<DisplayMode>().expect("one of the views"))
 }
 
-/// Reads a configuration file (TOML, any subset of [`Config`]'s fields over `base`).
-pub fn load_config(path: &std::path::Path, base: &Config) -> Result<Config> {
+/// A configuration file's `preset` key (what its settings apply over: a preset's name,
+/// `"auto"` or `"plain"`) and the rest of its text.
+fn read_config(path: &std::path::Path) -> Result<(Option<String>, String)> {
     let meta = std::fs::metadata(path).with_context(|| format!("{}", path.display()))?;
     if meta.len() > MAX_CONFIG_BYTES {
         bail!(
@@ -298,17 +309,84 @@ pub fn load_config(path: &std::path::Path, base: &Config) -> Result<Config> {
         );
     }
     let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    base.with_toml(&text)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    let mut table: toml::Table = text
+        .parse()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    match table.remove("preset") {
+        None => Ok((None, text)),
+        Some(toml::Value::String(name)) => Ok((Some(name), table.to_string())),
+        Some(v) => bail!(
+            "{}: preset = {v}: must be a string, one of {}",
+            path.display(),
+            preset_names()
+        ),
+    }
+}
+
+/// The rule's choice for the commands' JSON reports: `{"name", "reason"}`, or null when the
+/// command line gave the configuration (--config or --plain).
+pub fn choice_json(choice: &Option<Choice>) -> serde_json::Value {
+    choice.as_ref().map_or(
+        serde_json::Value::Null,
+        |c| serde_json::json!({"name": c.preset.name(), "reason": c.reason}),
+    )
+}
+
+/// The names `preset` takes.
+fn preset_names() -> String {
+    let mut names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
+    names.push("auto");
+    names.join(", ")
 }
 
 impl ConfigArgs {
+    /// The frame commands' configuration for a scene lit by `lights`: with neither --config,
+    /// --plain nor a technique's flag ([`technique_flags`](Self::technique_flags)), or with a
+    /// --config file whose `preset` is `"auto"`, the preset the rule chooses
+    /// ([`preset::choose`], returned with its reason); else the plain pipeline or the file's
+    /// `preset`; then the file's settings and the flags ([`apply`](Self::apply)). The presets
+    /// leave the light selection as it is, so `lights` stay those of the configuration.
+    pub fn for_scene(&self, lights: &Lights) -> Result<(Config, Option<Choice>)> {
+        let named = match &self.config {
+            Some(path) => read_config(path)?.0,
+            None => None,
+        };
+        let auto = !self.plain
+            && match &named {
+                None => self.config.is_none() && self.technique_flags().is_empty(),
+                Some(name) => name == "auto",
+            };
+        let (base, choice) = if auto {
+            let choice = preset::choose(lights);
+            (choice.preset.config(&Config::realtime()), Some(choice))
+        } else {
+            let preset = match named.as_deref() {
+                None | Some("plain") => Preset::Plain,
+                Some(name) => Preset::named(name).with_context(|| {
+                    format!(
+                        "{}: preset = \"{name}\": must be one of {}",
+                        self.config
+                            .as_ref()
+                            .map_or("".into(), |p| p.display().to_string()),
+                        preset_names()
+                    )
+                })?,
+            };
+            (preset.config(&Config::realtime()), None)
+        };
+        Ok((self.apply(base)?, choice))
+    }
+
     /// The configuration: `base`, then the `--config` file, then the flags. Not checked yet:
     /// the caller may still fill in values (e.g. the height from the camera's aspect ratio)
     /// before [`check`].
     pub fn apply(&self, base: Config) -> Result<Config> {
         let mut c = match &self.config {
-            Some(path) => load_config(path, &base)?,
+            Some(path) => {
+                let (_, text) = read_config(path)?;
+                base.with_toml(&text)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+            }
             None => base,
         };
         if let Some(v) = self.width {
@@ -385,6 +463,24 @@ impl ConfigArgs {
 }
 
 impl ConfigArgs {
+    /// The flags given that choose or tune a technique (the frame-only flags but the display
+    /// and accumulation, and the filter's): with one, the command line composes its own frame
+    /// over the plain pipeline instead of the preset the rule would choose.
+    pub fn technique_flags(&self) -> Vec<&'static str> {
+        let mut flags: Vec<_> = self
+            .frame_only_flags()
+            .into_iter()
+            .filter(|f| !matches!(*f, "--display" | "--no-accumulate" | "--max-frames"))
+            .collect();
+        let filter = [
+            ("--filter", self.filter.is_some()),
+            ("--kernel", self.kernel.is_some()),
+            ("--holes", self.holes.is_some()),
+        ];
+        flags.extend(filter.into_iter().filter(|(_, on)| *on).map(|(f, _)| f));
+        flags
+    }
+
     /// The flags given that only the frame pipeline reads (its stages, their parameters and
     /// the display mode), by name: `render`, the reference path tracer, refuses them.
     pub fn frame_only_flags(&self) -> Vec<&'static str> {

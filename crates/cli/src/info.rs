@@ -1,6 +1,7 @@
 //! `pathlight info`: load a scene and print what is in it, how long loading took and how much
 //! memory it needed.
 
+use pathlight_render::preset::Choice;
 use std::path::Path;
 use std::time::Instant;
 
@@ -32,16 +33,24 @@ struct Report<'a> {
     /// The environment's sun, as the texture cache's `terms = "sky"` and the sun preset split
     /// it from the sky (`light::sun`): its texels and its share of the environment's power.
     sun: Option<(usize, f32)>,
+    /// The preset `view`, `play` and `bench frame` choose for the scene without a
+    /// configuration ([`pathlight_render::preset::choose`]).
+    choice: Choice,
 }
 
-/// The environment's sun (`None`: no environment, or none of its texels is a sun).
-fn sun(scene: &Scene) -> Option<(usize, f32)> {
-    scene.environment.as_ref()?;
+/// The environment's sun (`None`: no environment, or none of its texels is a sun) and the
+/// preset the scene's lights call for.
+fn lights(scene: &Scene) -> (Option<(usize, f32)>, Choice) {
     let lights = pathlight_render::light::Lights::new(scene, Default::default());
+    let choice = pathlight_render::preset::choose(&lights);
+    if scene.environment.is_none() {
+        return (None, choice);
+    }
     let split = pathlight_render::light::sun::SunAndSky::new(&lights);
-    split
+    let sun = split
         .has_sun()
-        .then_some((split.sun_texels, split.sun_share))
+        .then_some((split.sun_texels, split.sun_share));
+    (sun, choice)
 }
 
 pub fn run(args: &InfoArgs) -> Result<()> {
@@ -57,9 +66,11 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let scene = pathlight_scene::load(path, &options)?;
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
     let peak_rss_bytes = peak_rss_bytes();
+    let (sun, choice) = lights(&scene);
     let report = Report {
         stats: scene.stats(),
-        sun: sun(&scene),
+        sun,
+        choice,
         scene: &scene,
         load_ms,
         peak_rss_bytes,
@@ -109,6 +120,7 @@ impl Report<'_> {
             "environment_name": environment.map(|e| e.name.clone()),
             "environment_size": environment.map(|e| [e.width, e.height]),
             "sun": self.sun.map(|(texels, share)| json!({"texels": texels, "share": share})),
+            "preset": json!({"name": self.choice.preset.name(), "reason": self.choice.reason}),
             "bounds": bounds,
             "load_ms": self.load_ms,
             "peak_rss_bytes": self.peak_rss_bytes,
@@ -176,6 +188,14 @@ impl Report<'_> {
                     100.0 * share
                 )
             }),
+        ));
+        rows.push((
+            "preset",
+            format!(
+                "{} ({}), what view, play and bench frame run without --config or --plain",
+                self.choice.preset.name(),
+                self.choice.reason
+            ),
         ));
         if s.bounds.is_empty() {
             rows.push(("bounds", "empty".into()));
@@ -276,7 +296,8 @@ mod tests {
             scene: &scene,
             load_ms: 1.0,
             peak_rss_bytes: None,
-            sun: sun(&scene),
+            sun: lights(&scene).0,
+            choice: lights(&scene).1,
         };
         let v = report.to_json();
         for key in [
@@ -294,6 +315,7 @@ mod tests {
             "cameras",
             "environment",
             "sun",
+            "preset",
             "bounds",
             "load_ms",
             "peak_rss_bytes",

@@ -206,9 +206,17 @@ fn with_camera_flags(mut path: CameraPath, flags: &CameraPath) -> Result<CameraP
 
 pub fn run(args: &PlayArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
-    check_realtime(&config)?;
     let pool = thread_pool(args.threads)?;
     let world = pool.install(|| args.scene.load_world(config.light_selection))?;
+    let (config, choice) = args.settings.for_scene(&world.lights)?;
+    check_realtime(&config)?;
+    if let Some(c) = &choice {
+        eprintln!(
+            "preset: {} ({}; --plain for none)",
+            c.preset.name(),
+            c.reason
+        );
+    }
     let path = load_path(&args.path, &world, &config)?;
     let views = world.path_views(&path);
     let per_view = path.frames_per_view.max(1) as u64;
@@ -408,6 +416,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
             "{}",
             serde_json::json!({
                 "frames": done,
+                "preset": crate::config_args::choice_json(&choice),
                 "prepare_ms": prepare_ms,
                 "first_frame_ms": summary.first_ms,
                 "first_over_median": summary.first_ms / median,

@@ -63,7 +63,6 @@ fn parse_scale(s: &str) -> std::result::Result<f32, String> {
 
 pub fn run(args: &ViewArgs) -> Result<()> {
     let config = args.settings.apply(Config::realtime())?;
-    check_realtime(&config)?;
     if let Some(t) = args.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)
@@ -71,6 +70,15 @@ pub fn run(args: &ViewArgs) -> Result<()> {
             .context("starting the worker threads")?;
     }
     let world = args.scene.load_world(config.light_selection)?;
+    let (config, choice) = args.settings.for_scene(&world.lights)?;
+    check_realtime(&config)?;
+    if let Some(c) = &choice {
+        eprintln!(
+            "preset: {} ({}; --plain for none)",
+            c.preset.name(),
+            c.reason
+        );
+    }
     let title = format!("pathlight: {}", world.scene.name);
     let options = ViewerOptions {
         title,
@@ -80,6 +88,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         report: args.report.clone(),
         state: args.state.clone(),
         close_after: Duration::from_secs_f64(args.close_after.clamp(0.0, 3600.0)),
+        choice,
     };
     pathlight_viewer::run(world, config, options)?;
     Ok(())

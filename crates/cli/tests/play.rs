@@ -38,6 +38,10 @@ fn play_is_deterministic_for_a_fixed_seed() {
     // Consecutive frames of the orbit differ (the camera moves).
     let fa = frames(&a);
     assert_ne!(fa[0], fa[1]);
+    // --plain: the plain pipeline, its frames other than the preset's.
+    let p = dir.join("p");
+    play(&p, &["--seed", "3", "--plain"]);
+    assert_ne!(frames(&p), fa, "--plain changes nothing");
 
     // Timings per frame and per pass.
     let json: serde_json::Value =
@@ -53,7 +57,16 @@ fn play_is_deterministic_for_a_fixed_seed() {
             .iter()
             .map(|p| p["pass"].as_str().unwrap())
             .collect();
-        assert_eq!(passes, ["primary", "lighting", "accumulate", "display"]);
+        // The preset the Cornell box's lamp calls for: the texture cache under TAA.
+        let cache = [
+            "primary",
+            "lighting",
+            "texture-cache",
+            "accumulate",
+            "filter",
+            "display",
+        ];
+        assert_eq!(passes, cache);
         assert!(f["ms"].as_f64().unwrap() > 0.0);
         // Every frame is a new view of the orbit: one frame accumulated.
         assert_eq!(f["accumulated"], 1);
@@ -235,7 +248,7 @@ fn play_measures_flicker_at_a_still_view() {
     let flicker = |extra: &[&str]| -> serde_json::Value {
         let mut args = vec![
             "play", "--path", "still", "--frames", "6", "--width", "64", "--height", "48",
-            "--quiet", "--json",
+            "--quiet", "--json", "--plain",
         ];
         args.extend_from_slice(extra);
         let o = pathlight(&args);
@@ -310,4 +323,60 @@ fn a_stereo_pair_shares_the_texture_cache() {
     assert_ne!(left, right, "the eyes see different views");
     let o = pathlight(&["play", "--path", "still", "--eye-separation", "-1"]);
     assert!(!o.status.success());
+}
+
+/// Without a configuration `play` runs the preset the scene's lights call for and reports it
+/// (the Cornell box's one lamp: the texture cache's); `--plain`, a technique's flag and a
+/// `--config` file run the plain pipeline, unless the file's `preset` key names a preset or
+/// `"auto"`; a name that is none is refused, listing the names.
+#[test]
+fn play_chooses_a_preset_unless_told_otherwise() {
+    let dir = temp_dir("preset");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "play", "--path", "still", "--frames", "2", "--width", "32", "--height", "24",
+            "--quiet", "--json",
+        ];
+        args.extend_from_slice(extra);
+        pathlight(&args)
+    };
+    let report = |extra: &[&str]| -> serde_json::Value {
+        let o = run(extra);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        serde_json::from_str(stdout(&o).lines().last().unwrap()).unwrap()
+    };
+    let cache = |v: &serde_json::Value| v["passes"].get("texture-cache").is_some();
+    let auto = report(&[]);
+    assert_eq!(auto["preset"]["name"], "realtime-sun");
+    let reason = auto["preset"]["reason"].as_str().unwrap();
+    assert!(reason.contains("1 light source"), "{reason}");
+    assert!(cache(&auto));
+    for extra in [&["--plain"][..], &["--reprojection"]] {
+        let v = report(extra);
+        assert!(v["preset"].is_null() && !cache(&v), "{extra:?}: {v}");
+    }
+    let file = |name: &str, text: &str| {
+        let f = dir.join(name);
+        std::fs::write(&f, text).unwrap();
+        f.to_str().unwrap().to_owned()
+    };
+    let own = file("own.toml", "spp = 1\n");
+    let v = report(&["--config", &own]);
+    assert!(v["preset"].is_null() && !cache(&v), "{v}");
+    let svgf = file("svgf.toml", "preset = \"realtime\"\nspp = 1\n");
+    let v = report(&["--config", &svgf]);
+    assert!(v["passes"].get("filter").is_some() && !cache(&v), "{v}");
+    let auto_file = file("auto.toml", "preset = \"auto\"\n");
+    assert_eq!(
+        report(&["--config", &auto_file])["preset"]["name"],
+        "realtime-sun"
+    );
+    let bad = file("bad.toml", "preset = \"sunny\"\n");
+    let o = run(&["--config", &bad]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("sunny") && e.contains("realtime-sun") && e.contains("auto"),
+        "{e}"
+    );
 }

@@ -17,6 +17,7 @@ pub mod light;
 pub mod output;
 pub mod part;
 pub mod path;
+pub mod preset;
 pub mod renderer;
 pub mod rpf;
 pub mod sampler;

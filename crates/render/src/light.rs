@@ -469,6 +469,17 @@ impl Lights {
         self.count == 0
     }
 
+    /// The light sources apart from the environment: emissive materials (each however many
+    /// triangles it covers) and punctual lights.
+    pub fn sources(&self) -> usize {
+        self.emitters.len() + self.punctual.len()
+    }
+
+    /// Whether an environment map lights the scene.
+    pub fn has_environment(&self) -> bool {
+        self.environment.is_some()
+    }
+
     /// The probability of selecting light `index` (see the module doc for the indices).
     pub fn selection_pmf(&self, index: usize) -> f32 {
         self.selection.as_ref().map_or(0.0, |t| t.pmf(index))

@@ -88,6 +88,9 @@ pub struct ViewerOptions {
     /// camera, pause, frames shown, where the image is), so that a test driving the mouse and
     /// keyboard can see what they did.
     pub state: Option<PathBuf>,
+    /// The preset the scene's lights chose (the configuration is it, with the command line's
+    /// flags), and why; `None` when the command line gave the configuration.
+    pub choice: Option<pathlight_render::preset::Choice>,
 }
 
 impl Default for ViewerOptions {
@@ -100,6 +103,7 @@ impl Default for ViewerOptions {
             report: None,
             close_after: Duration::from_secs(10),
             state: None,
+            choice: None,
         }
     }
 }
@@ -155,8 +159,9 @@ pub struct Viewer {
     frozen_at: Option<Instant>,
     screenshots: u32,
     message: String,
-    /// The preset applied last (its button's name) and the configuration it gave.
-    preset: Option<(&'static str, Config)>,
+    /// The preset applied last (its name; with the rule's reason when the rule chose it) and
+    /// the configuration it gave.
+    preset: Option<(String, Config)>,
     /// What the state hook last wrote.
     last_state: String,
 }
@@ -179,6 +184,10 @@ impl Viewer {
         let mut config = config;
         config.camera = navigation.camera(&config.camera);
         let worker = Worker::start(world, config.clone(), repaint);
+        let preset = options.choice.as_ref().map(|c| {
+            let name = format!("{} (chosen: {})", c.preset.name(), c.reason);
+            (name, config.clone())
+        });
         Self {
             worker,
             config,
@@ -196,7 +205,7 @@ impl Viewer {
             frozen_at: None,
             screenshots: 0,
             message: String::new(),
-            preset: None,
+            preset,
             last_state: String::new(),
         }
     }

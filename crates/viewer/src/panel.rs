@@ -18,31 +18,11 @@ use pathlight_render::frame::{
     ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR, TEXTURE_CACHE,
 };
 use pathlight_render::light::LightSelection;
+use pathlight_render::preset::Preset;
 use pathlight_render::sampler::SamplerKind;
 
 use crate::navigation::Mode;
 
-/// The presets the panel offers: button, file, what it is for, the file compiled in.
-const PRESETS: [(&str, &str, &str, &str); 3] = [
-    (
-        "Real-time preset",
-        "experiments/realtime.toml",
-        "the best preset for a moving camera at 30 fps",
-        include_str!("../../../experiments/realtime.toml"),
-    ),
-    (
-        "Many-lights preset",
-        "experiments/realtime-many-lights.toml",
-        "the real-time preset with ReSTIR DI, for scenes with hundreds of lights",
-        include_str!("../../../experiments/realtime-many-lights.toml"),
-    ),
-    (
-        "Sun preset",
-        "experiments/realtime-sun.toml",
-        "the texture-space cache for scenes lit by a sun and a sky",
-        include_str!("../../../experiments/realtime-sun.toml"),
-    ),
-];
 use crate::{Viewer, SHORTCUTS};
 
 pub fn show(v: &mut Viewer, ui: &mut egui::Ui) {
@@ -136,19 +116,16 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
         None => "configuration: the command line's".to_owned(),
     });
     ui.horizontal(|ui| {
-        for (button, file, what, toml) in PRESETS {
+        for preset in Preset::ALL {
+            let file = preset.file().unwrap_or("every technique off");
             if ui
-                .button(button)
-                .on_hover_text(format!("{file}: {what}"))
+                .button(preset.name())
+                .on_hover_text(format!("{file}: {}", preset.about()))
                 .clicked()
             {
-                match v.config.with_preset(toml) {
-                    Ok(c) => {
-                        v.preset = Some((button, c.clone()));
-                        v.config = c;
-                    }
-                    Err(e) => v.message = format!("{file}: {e}"),
-                }
+                let c = preset.config(&v.config);
+                v.preset = Some((preset.name().to_owned(), c.clone()));
+                v.config = c;
             }
         }
     });
@@ -775,34 +752,25 @@ mod tests {
         base.camera.fov_y = Some(50.0);
         base.seed = 7;
         base.display.exposure = 1.5;
-        for (_, _, _, first) in PRESETS {
-            let after_first = base.with_preset(first).unwrap();
-            for (name, file, _, second) in PRESETS {
-                let alone = base.with_preset(second).unwrap();
-                let stacked = after_first.with_preset(second).unwrap();
-                assert_eq!(stacked, alone, "{name} after another");
+        for first in Preset::ALL {
+            let after_first = first.config(&base);
+            for second in Preset::ALL {
+                let alone = second.config(&base);
+                let stacked = second.config(&after_first);
+                assert_eq!(stacked, alone, "{} after {}", second.name(), first.name());
                 assert!(stacked.is_preset(&alone));
-                assert_eq!(alone.camera, base.camera, "{file}");
-                assert_eq!((alone.seed, alone.display.exposure), (7, 1.5), "{file}");
+                assert_eq!(alone.camera, base.camera, "{}", second.name());
+                assert_eq!((alone.seed, alone.display.exposure), (7, 1.5));
             }
         }
         // The sun preset's cache, then the real-time preset: no cache under SVGF.
-        let sun = base.with_preset(PRESETS[2].3).unwrap();
+        let sun = Preset::Sun.config(&base);
         assert!(sun.frame.texture_cache.enabled);
-        let realtime = sun.with_preset(PRESETS[0].3).unwrap();
+        let realtime = Preset::Realtime.config(&sun);
         assert!(!realtime.frame.texture_cache.enabled);
         // A setting changed after the preset: no longer the preset.
         let mut changed = realtime.clone();
         changed.frame.texture_cache.enabled = true;
-        assert!(!changed.is_preset(&base.with_preset(PRESETS[0].3).unwrap()));
-    }
-
-    /// Every preset the panel offers is a configuration the pipeline accepts.
-    #[test]
-    fn the_presets_are_valid_configurations() {
-        for (_, file, _, toml) in PRESETS {
-            let c = Config::realtime().with_toml(toml).unwrap();
-            c.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
-        }
+        assert!(!changed.is_preset(&Preset::Realtime.config(&base)));
     }
 }

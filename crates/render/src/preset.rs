@@ -1,0 +1,238 @@
+//! The real-time presets (whole configurations, `experiments/realtime*.toml`) and the rule
+//! that chooses one from the scene's lights when the user gives no configuration (`view`,
+//! `play` and `bench frame` without `--config` or `--plain`).
+//!
+//! The rule, from the presets measured along short camera moves on four scenes (320x180, two
+//! bounces, relMSE against converged references at each preset's median frame time, issue 60,
+//! 2026-12-07):
+//! - **no light** (nothing emits and no environment): the plain pipeline, since every
+//!   technique would be spent on a black image;
+//! - **many sources and no environment** (at least [`MANY_SOURCES`] emissive materials and
+//!   punctual lights): the SVGF preset (`realtime.toml`): on the interior lit by 500 point
+//!   lights it gave 0.246 at 74 ms, where the cache's preset gave 0.956 at 68 ms (its cells'
+//!   next event estimation over hundreds of lights is noise the cache then keeps) and
+//!   ReSTIR's 0.211 at 106 ms (better error, but not per millisecond);
+//! - **otherwise** (a sky, a sun, a studio environment, a few lamps): the texture cache's
+//!   preset (`realtime-sun.toml`): the best on the Cornell box (0.122 at 33 ms against SVGF's
+//!   0.165 at 33), the garden under its sky (0.138 at 40 against 0.363 at 31) and the helmet
+//!   in its studio (0.192 at 48 against 14.6 at 37, where SVGF smeared the visor's highlight).
+//!
+//! Facts not used yet (the issue's other candidates): how much of the view is glossy,
+//! metallic or textured. The threshold between "a few" and "many" sources is not measured
+//! between 1 and 500; 64 is a choice.
+
+use crate::config::Config;
+use crate::light::Lights;
+
+/// Light sources (besides an environment) from which a scene counts as lit by many.
+pub const MANY_SOURCES: usize = 64;
+
+/// A configuration the frame commands can start from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preset {
+    /// The plain path tracer: every technique off (`Config::realtime()`).
+    Plain,
+    /// SVGF with accumulation and its still handover (`experiments/realtime.toml`).
+    Realtime,
+    /// The real-time preset with ReSTIR DI (`experiments/realtime-many-lights.toml`).
+    ManyLights,
+    /// The texture-space shading cache, its sun apart, under TAA
+    /// (`experiments/realtime-sun.toml`).
+    Sun,
+}
+
+impl Preset {
+    /// Every preset, in the order the viewer offers them.
+    pub const ALL: [Preset; 4] = [Self::Plain, Self::Realtime, Self::ManyLights, Self::Sun];
+
+    /// Its name (the viewer's button; `info`'s and `play`'s reports).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Plain => "plain",
+            Self::Realtime => "realtime",
+            Self::ManyLights => "realtime-many-lights",
+            Self::Sun => "realtime-sun",
+        }
+    }
+
+    /// Its file, from the repository's root (`None`: the plain pipeline has none).
+    pub fn file(self) -> Option<&'static str> {
+        match self {
+            Self::Plain => None,
+            Self::Realtime => Some("experiments/realtime.toml"),
+            Self::ManyLights => Some("experiments/realtime-many-lights.toml"),
+            Self::Sun => Some("experiments/realtime-sun.toml"),
+        }
+    }
+
+    /// What it is for.
+    pub fn about(self) -> &'static str {
+        match self {
+            Self::Plain => "the plain path tracer: one noisy sample a frame, no technique",
+            Self::Realtime => "SVGF for a moving camera at 30 fps (scenes lit by many lamps)",
+            Self::ManyLights => "the real-time preset with ReSTIR DI, for hundreds of lights",
+            Self::Sun => "the texture-space cache (skies, suns, studios and a few lamps)",
+        }
+    }
+
+    /// Its text (TOML), compiled in.
+    pub fn text(self) -> &'static str {
+        match self {
+            Self::Plain => "max_bounces = 2\n",
+            Self::Realtime => include_str!("../../../experiments/realtime.toml"),
+            Self::ManyLights => include_str!("../../../experiments/realtime-many-lights.toml"),
+            Self::Sun => include_str!("../../../experiments/realtime-sun.toml"),
+        }
+    }
+
+    /// The preset as a whole configuration over `view`'s view of the scene
+    /// ([`Config::with_preset`]).
+    pub fn config(self, view: &Config) -> Config {
+        view.with_preset(self.text())
+            .expect("the presets compiled in parse (tests/preset.rs)")
+    }
+
+    /// The preset named `name` (one of [`name`](Self::name)'s).
+    pub fn named(name: &str) -> Option<Preset> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+/// The preset the rule chose, and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Choice {
+    pub preset: Preset,
+    pub reason: String,
+}
+
+/// `n` light sources, in words.
+fn sources_text(n: usize) -> String {
+    format!("{n} light source{}", if n == 1 { "" } else { "s" })
+}
+
+/// The rule (module docs): the preset for a scene lit by `lights`.
+pub fn choose(lights: &Lights) -> Choice {
+    let (sources, environment) = (lights.sources(), lights.has_environment());
+    let (preset, reason) = if sources == 0 && !environment {
+        (
+            Preset::Plain,
+            "nothing emits light and there is no environment".to_string(),
+        )
+    } else if sources >= MANY_SOURCES && !environment {
+        (
+            Preset::Realtime,
+            format!(
+                "{} and no environment (many: at least {MANY_SOURCES})",
+                sources_text(sources)
+            ),
+        )
+    } else {
+        let what = match (environment, sources) {
+            (true, 0) => "an environment".to_string(),
+            (true, n) => format!("an environment and {}", sources_text(n)),
+            (false, n) => format!("{} (few: under {MANY_SOURCES})", sources_text(n)),
+        };
+        (Preset::Sun, what)
+    };
+    Choice { preset, reason }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Mat4, Vec3};
+    use pathlight_scene::{Environment, PunctualKind, PunctualLight, Scene};
+
+    use super::*;
+    use crate::light::tests::{emissive_material, instance, mesh};
+
+    /// A scene lit by `points` point lights, `lamps` emissive quads (each its own material)
+    /// and `environment`.
+    fn scene(points: usize, lamps: usize, environment: Option<Environment>) -> Scene {
+        let mut s = Scene {
+            environment,
+            ..Scene::default()
+        };
+        for i in 0..lamps {
+            s.materials
+                .push(emissive_material(Vec3::splat(1.0 + i as f32), false));
+            let quad = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::Z];
+            s.meshes
+                .push(mesh(quad, vec![[0, 2, 1], [0, 3, 2]], i as u32));
+            let at = Mat4::from_translation(Vec3::new(2.0 * i as f32, 3.0, 0.0));
+            s.instances.push(instance(i as u32, at));
+        }
+        s.lights = (0..points)
+            .map(|i| PunctualLight {
+                name: format!("p{i}"),
+                kind: PunctualKind::Point,
+                position: Vec3::new(i as f32, 2.0, 0.0),
+                direction: Vec3::NEG_Y,
+                intensity: Vec3::splat(1.0),
+                range: None,
+            })
+            .collect();
+        s.collect_emissive_triangles();
+        s
+    }
+
+    /// A sky of 32x16 texels with a sun of three bright texels.
+    fn sky_and_sun() -> Environment {
+        let (w, h) = (32, 16);
+        let mut env = Environment::constant(Vec3::splat(0.5));
+        env.width = w;
+        env.height = h;
+        env.texels = vec![Vec3::new(0.4, 0.5, 0.7); (w * h) as usize];
+        for (x, y) in [(10, 4), (11, 4), (10, 5)] {
+            env.texels[(y * w + x) as usize] = Vec3::splat(20_000.0);
+        }
+        env
+    }
+
+    fn chosen(s: &Scene) -> Preset {
+        choose(&Lights::new(s, Default::default())).preset
+    }
+
+    /// The rule picks what the module docs say on a scene built for each case.
+    #[test]
+    fn the_rule_picks_what_its_documentation_says() {
+        assert_eq!(chosen(&scene(0, 0, None)), Preset::Plain, "no light");
+        assert_eq!(chosen(&scene(0, 1, None)), Preset::Sun, "a lamp");
+        assert_eq!(chosen(&scene(2, 3, None)), Preset::Sun, "a few lamps");
+        assert_eq!(chosen(&scene(500, 0, None)), Preset::Realtime, "500 points");
+        let sky = Some(sky_and_sun());
+        assert_eq!(
+            chosen(&scene(0, 0, sky.clone())),
+            Preset::Sun,
+            "sun and sky"
+        );
+        assert_eq!(
+            chosen(&scene(500, 0, sky)),
+            Preset::Sun,
+            "sky and 500 points"
+        );
+        let n = MANY_SOURCES;
+        assert_eq!(
+            chosen(&scene(n - 1, 0, None)),
+            Preset::Sun,
+            "just under many"
+        );
+        assert_eq!(chosen(&scene(n - 1, 1, None)), Preset::Realtime, "many");
+        let reason = choose(&Lights::new(&scene(500, 0, None), Default::default())).reason;
+        assert!(reason.contains("500 light sources"), "{reason}");
+    }
+
+    /// Every preset compiled in parses, passes validation, names itself, and leaves the light
+    /// selection alone (the frame commands load the world before the rule chooses).
+    #[test]
+    fn every_preset_parses_and_keeps_the_light_selection() {
+        let base = Config::realtime();
+        for p in Preset::ALL {
+            let c = p.config(&base);
+            c.validate().unwrap();
+            assert_eq!(c.light_selection, base.light_selection, "{}", p.name());
+            assert_eq!(Preset::named(p.name()), Some(p));
+        }
+        assert_eq!(Preset::Plain.config(&base), base);
+        assert!(Preset::Sun.config(&base).frame.texture_cache.enabled);
+    }
+}
