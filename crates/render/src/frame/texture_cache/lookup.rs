@@ -4,6 +4,7 @@
 //! ([`super::texels`]), and adds its own terms (emission, the sun or its direct light); the
 //! others, and every sample of a surface that bypasses the cache, trace their whole path.
 
+use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::{UVec2, Vec3};
@@ -16,6 +17,8 @@ use crate::path::{PathSettings, PathTracer, Vertex, CAMERA_DIMENSIONS};
 use super::super::accumulation::PixelStats;
 use super::super::gbuffer::{GBuffer, PrimaryHit};
 use super::super::lighting::{self, LightSample};
+use super::super::state::Times;
+use super::super::trace::{FirstHitLight, Run, RUN};
 use super::footprint::Footprint;
 use super::samples::{Status, Work};
 use super::settings::{CacheFilter, CachedTerms, LodMeasure, TextureCacheConfig, CHANNELS};
@@ -43,7 +46,7 @@ pub struct CachePixel {
 }
 
 /// The cache as one frame's lighting pass reads it.
-pub struct CacheFrame<'a> {
+pub(super) struct CacheFrame<'a> {
     /// The texel cache over the sample cache, this frame.
     texels: TexelFrame<'a>,
     /// The path tracer for the pixels' own terms at a cached first hit (no continuation).
@@ -68,19 +71,14 @@ impl<'a> CacheFrame<'a> {
 
     /// After the frame's lighting pass: its young cells brought up to `fresh_spp`
     /// ([`super::samples::SampleFrame::top_up`]).
-    pub fn top_up(
-        &self,
-        tracer: &PathTracer,
-        pixels: usize,
-        times: &mut super::super::state::Times,
-    ) -> u64 {
+    pub(super) fn top_up(&self, tracer: &PathTracer, pixels: usize, times: &mut Times) -> u64 {
         self.texels.samples.top_up(tracer, pixels, times)
     }
 
     /// The lighting of one pixel (as [`lighting::light`]): samples whose first hit is cached
     /// take their own terms and the texel's light; the others trace their whole path.
     #[allow(clippy::too_many_arguments)]
-    pub fn light(
+    pub(super) fn light(
         &self,
         tracer: &PathTracer,
         x: u32,
@@ -393,6 +391,72 @@ impl<'a> CacheFrame<'a> {
         let status = self.texels.texel_block(tracer, &block, &mut texels, work);
         out[..ch].copy_from_slice(&texels[square * ch..(square + 1) * ch]);
         (status, key)
+    }
+}
+
+/// The texture cache as the light at the first hits ([`FirstHitLight`]): each pixel's light
+/// looked up through the cache ([`CacheFrame::light`]), its first sample's direct light from
+/// the light beneath (next event estimation, or ReSTIR's reservoir), what it met recorded for
+/// the stage's views.
+pub(super) struct CacheLight<'a> {
+    frame: CacheFrame<'a>,
+    /// The pixels' records by runs of [`RUN`] pixels, each run's taken by the thread that
+    /// lights it.
+    records: Vec<Mutex<&'a mut [CachePixel]>>,
+    beneath: &'a mut dyn FirstHitLight,
+}
+
+impl<'a> CacheLight<'a> {
+    pub(super) fn new(
+        frame: CacheFrame<'a>,
+        records: &'a mut [CachePixel],
+        beneath: &'a mut dyn FirstHitLight,
+    ) -> Self {
+        Self {
+            frame,
+            records: records.chunks_mut(RUN).map(Mutex::new).collect(),
+            beneath,
+        }
+    }
+}
+
+impl FirstHitLight for CacheLight<'_> {
+    fn prepare(
+        &mut self,
+        tracer: &PathTracer,
+        gbuffer: &GBuffer,
+        hits: &[Vec<Option<PrimaryHit>>],
+        times: &mut Times,
+    ) -> u64 {
+        self.beneath.prepare(tracer, gbuffer, hits, times)
+    }
+
+    fn direct(&self, tracer: &PathTracer, pixel: usize, rays: &mut u32) -> Option<Vec3> {
+        self.beneath.direct(tracer, pixel, rays)
+    }
+
+    /// Down columns: a run's cells are then mostly those the runs above it needed.
+    fn by_columns(&self) -> bool {
+        true
+    }
+
+    fn light_run(&self, tracer: &PathTracer, run: &Run, out: &mut [LightSample]) -> u64 {
+        let mut records = self.records[run.start / RUN].lock().expect("not poisoned");
+        run.each(
+            out,
+            |p, r| self.beneath.direct(tracer, p, r),
+            |px, hit, d| {
+                let (x, y, samples) = (px.x, px.y, (px.index, px.spp));
+                let record = &mut records[px.k];
+                let g = run.gbuffer;
+                self.frame
+                    .light(tracer, x, y, hit, samples, g, run.along, d, record)
+            },
+        )
+    }
+
+    fn finish(&mut self, gbuffer: &GBuffer) {
+        self.beneath.finish(gbuffer)
     }
 }
 

@@ -8,6 +8,13 @@
 //!                                                                              (demodulated)
 //! ```
 //!
+//! **How it plugs in.** [`TextureCache::begin`] returns the cache's frame as the light at the
+//! first hits that the lighting pass asks ([`FirstHitLight`]): it lights each run of pixels
+//! itself (down columns of the image, see the tables below), taking each pixel's direct light
+//! at its first hit from the light it was given beneath it (next event estimation, or ReSTIR's
+//! reservoirs), and records what each pixel met for the stage's views.
+//! [`TextureCache::end`] then brings the young cells up to `fresh_spp` and reports.
+//!
 //! Per pixel sample whose first hit is diffuse enough ([`TextureCacheConfig::min_roughness`]):
 //!
 //! 1. its footprint (ray differentials of its camera sample, [`footprint`]) picks the
@@ -35,9 +42,10 @@
 //! summed over the sun's texels, times the BSDF and the visibility toward the one sample, so
 //! that a fully lit surface's sun does not change from frame to frame. With ReSTIR
 //! (seed 004), a cached pixel's direct light is its reservoir's whatever the cache holds.
-//! A pixel on a silhouette or a crease (`edge_spp`, [`GBuffer::on_edge`](crate::frame::gbuffer::GBuffer::on_edge)) takes more camera
-//! samples, each looking its light up: a single sample's coverage of an edge is what the
-//! cache leaves of a moving camera's error.
+//! A pixel on a silhouette or a crease (`edge_spp`,
+//! [`GBuffer::on_edge`](crate::frame::gbuffer::GBuffer::on_edge)) takes more camera samples,
+//! each looking its light up: a single sample's coverage of an edge is what the cache leaves
+//! of a moving camera's error.
 //! Pixels on glossy (`min_roughness`), metallic, transmissive or mirror-like surfaces bypass
 //! the cache: their whole path is traced per pixel, as without it. The cached
 //! light is the cosine-weighted mean of the incoming light (a white Lambertian's reflected
@@ -145,20 +153,22 @@ use serde::Serialize;
 use crate::bsdf::Microfacet;
 use crate::camera::Camera;
 use crate::light::sun::SunAndSky;
-use crate::path::PathSettings;
+use crate::path::{PathSettings, PathTracer};
 use crate::world::World;
 
 use super::display::{viridis, View, ViewKind, NONE};
 use super::stage::Stage;
 use super::state::{Change, FrameState, Times};
+use super::trace::FirstHitLight;
 
-pub use lookup::{CacheFrame, CachePixel};
+pub use lookup::CachePixel;
 pub use samples::Status;
 pub use settings::{
     ranges, CacheFilter, CachedTerms, LodMeasure, Temporal, TextureCacheConfig, MAX_BUDGET_MB,
     MAX_EDGE_SPP, MAX_FRESH_BUDGET, MAX_FRESH_SPP, MAX_KERNEL, TEXTURE_CACHE,
 };
 
+use lookup::{CacheFrame, CacheLight};
 use samples::{Counters, SampleCache, SampleFrame};
 use surface_grid::SurfaceGrids;
 use table::{Table, CELLS, READY, SQUARES, STATE};
@@ -183,10 +193,16 @@ pub struct CacheReport {
     pub bytes: u64,
 }
 
-/// The two caches, the frame they serve and its counts: what the lighting pass's threads
-/// share.
+/// The two caches, the frame they serve and its counts, and what they keep per world: what
+/// the lighting pass's threads share.
 #[derive(Default)]
 struct Caches {
+    /// The grids of the world they were made for (its address and triangle count).
+    grids: Option<(usize, usize, SurfaceGrids)>,
+    /// The environment's sun and sky, of the same world as the grids (`terms = "sky"`).
+    sun: SunAndSky,
+    /// The same world's [`crate::light::Lights::reflected_bound`] (the clamp's unit).
+    bound: f32,
     samples: SampleCache,
     texels: TexelCache,
     /// Frames the cache has served (its slots' frame stamps; 0: never).
@@ -194,15 +210,47 @@ struct Caches {
     counters: Counters,
 }
 
+impl Caches {
+    /// What a frame's lighting pass reads (after [`TextureCache::prepare`]) with `cfg`, the
+    /// frame's path `settings` and `camera`.
+    fn frame<'a>(
+        &'a self,
+        cfg: &'a TextureCacheConfig,
+        settings: PathSettings,
+        camera: &'a Camera,
+    ) -> CacheFrame<'a> {
+        let samples = SampleFrame {
+            cache: &self.samples,
+            frame: self.frame,
+            counters: &self.counters,
+            grids: &self.grids.as_ref().expect("made by prepare_world").2,
+            sun: &self.sun,
+            cfg,
+            clamp: match cfg.clamp > 0.0 {
+                true => cfg.clamp * self.bound,
+                false => f32::INFINITY,
+            },
+            seed: hash(&[settings.seed, 0x002]),
+        };
+        let short = PathSettings {
+            max_bounces: Some(match cfg.terms {
+                CachedTerms::Indirect => 1,
+                CachedTerms::All | CachedTerms::Sky => 0,
+            }),
+            mis_at_last: true,
+            ..settings
+        };
+        let texels = TexelFrame {
+            samples,
+            cache: &self.texels,
+        };
+        CacheFrame::new(texels, short, camera)
+    }
+}
+
 /// Seed 002's stage: the grids, the two tables, and what each pixel met.
 #[derive(Default)]
 pub struct TextureCache {
-    /// The grids of the world they were made for (its address and triangle count).
-    grids: Option<(usize, usize, SurfaceGrids)>,
-    /// The environment's sun and sky, of the same world as the grids (`terms = "sky"`).
-    sun: SunAndSky,
-    /// The same world's [`crate::light::Lights::reflected_bound`] (the clamp's unit).
-    bound: f32,
     cache: Caches,
     /// The tables' configuration (budget's bits, channels): a change reallocates them.
     layout: (u32, usize),
@@ -306,76 +354,51 @@ impl TextureCache {
             world as *const World as usize,
             world.scene.triangle_count() as usize,
         );
-        if self.grids.as_ref().map(|g| (g.0, g.1)) != Some(id) {
-            self.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
-            self.sun = SunAndSky::new(&world.lights);
-            self.bound = world.lights.reflected_bound();
+        let c = &mut self.cache;
+        if c.grids.as_ref().map(|g| (g.0, g.1)) != Some(id) {
+            c.grids = Some((id.0, id.1, SurfaceGrids::new(world)));
+            c.sun = SunAndSky::new(&world.lights);
+            c.bound = world.lights.reflected_bound();
             self.clear = true;
             crate::bsdf::specular_albedo::prepare(microfacet);
         }
     }
 
-    /// What the frame's lighting pass reads (after [`prepare`](Self::prepare)), and the
-    /// pixels' records it fills.
-    fn frame<'a>(
-        &'a mut self,
-        cfg: &'a TextureCacheConfig,
-        settings: PathSettings,
-        camera: &'a Camera,
-    ) -> (CacheFrame<'a>, &'a mut [CachePixel]) {
-        let c = &self.cache;
-        let samples = SampleFrame {
-            cache: &c.samples,
-            frame: c.frame,
-            counters: &c.counters,
-            grids: &self.grids.as_ref().expect("made above").2,
-            sun: &self.sun,
-            cfg,
-            clamp: match cfg.clamp > 0.0 {
-                true => cfg.clamp * self.bound,
-                false => f32::INFINITY,
-            },
-            seed: hash(&[settings.seed, 0x002]),
-        };
-        let short = PathSettings {
-            max_bounces: Some(match cfg.terms {
-                CachedTerms::Indirect => 1,
-                CachedTerms::All | CachedTerms::Sky => 0,
-            }),
-            mis_at_last: true,
-            ..settings
-        };
-        let texels = TexelFrame {
-            samples,
-            cache: &c.texels,
-        };
-        let frame = CacheFrame::new(texels, short, camera);
-        (frame, &mut self.pixels)
-    }
-
-    /// Before the frame's lighting pass: [`prepare`](Self::prepare) for `world`, `cfg` and
-    /// `pixels` pixels, then [`frame`](Self::frame).
+    /// Before the frame's lighting pass: [`prepare`](Self::prepare) for `tracer`'s world, `cfg`
+    /// and `pixels` pixels. Returns the light at the first hits that the lighting pass asks
+    /// ([`FirstHitLight`]): each pixel's light looked up through the cache, its first sample's
+    /// direct light from `beneath` (next event estimation, or ReSTIR's reservoirs), what it
+    /// met kept for the stage's views.
     pub fn begin<'a>(
         &'a mut self,
-        world: &World,
+        tracer: &PathTracer<'a>,
         cfg: &'a TextureCacheConfig,
-        settings: PathSettings,
-        camera: &'a Camera,
         pixels: usize,
-    ) -> (CacheFrame<'a>, &'a mut [CachePixel]) {
-        self.prepare(world, cfg, settings.microfacet, pixels);
-        self.frame(cfg, settings, camera)
+        beneath: &'a mut dyn FirstHitLight,
+    ) -> impl FirstHitLight + 'a {
+        self.prepare(tracer.world, cfg, tracer.settings.microfacet, pixels);
+        let frame = self.cache.frame(cfg, tracer.settings, tracer.camera);
+        CacheLight::new(frame, &mut self.pixels, beneath)
     }
 
-    /// After the frame's lighting pass (`lighting`, the pass's name) and top-up: what the
-    /// cache did, its lookups' thread time (spread over the threads) moved in `times` from
-    /// the lighting pass to the stage's.
-    pub fn end(&self, times: &mut Times, lighting: &'static str) -> CacheReport {
+    /// After the frame's lighting pass (`lighting`, the pass's name, with `cfg`): the young
+    /// cells it shaded brought up to `fresh_spp` ([`CacheFrame::top_up`]), then what the cache
+    /// did, its lookups' thread time (spread over the threads) moved in `times` from the
+    /// lighting pass to the stage's. Returns the top-up's rays and the report.
+    pub fn end(
+        &self,
+        tracer: &PathTracer,
+        cfg: &TextureCacheConfig,
+        times: &mut Times,
+        lighting: &'static str,
+    ) -> (u64, CacheReport) {
+        let frame = self.cache.frame(cfg, tracer.settings, tracer.camera);
+        let rays = frame.top_up(tracer, self.pixels.len(), times);
         let (report, ms) = self.report();
         let ms = ms / rayon::current_num_threads() as f64;
         times.add(TEXTURE_CACHE, ms);
         times.add(lighting, -ms);
-        report
+        (rays, report)
     }
 
     /// What the cache did this frame, and the thread time its lookups took (ms).
@@ -461,6 +484,6 @@ impl Stage for TextureCache {
         self.cache.samples.table.bytes()
             + self.cache.texels.table.bytes()
             + self.pixels.capacity() * std::mem::size_of::<CachePixel>()
-            + self.grids.as_ref().map_or(0, |g| g.2.bytes())
+            + self.cache.grids.as_ref().map_or(0, |g| g.2.bytes())
     }
 }
