@@ -15,7 +15,7 @@ use std::collections::HashMap;
 
 use glam::Vec2;
 use pathlight_render::config::CameraConfig;
-use pathlight_render::footprint::Footprint;
+use pathlight_render::frame::texture_cache::footprint::Footprint;
 use pathlight_render::{Config, World};
 
 fn triple(s: &str) -> [f32; 3] {

@@ -11,7 +11,6 @@ pub mod config;
 pub mod distribution;
 pub mod error;
 pub mod film;
-pub mod footprint;
 pub mod frame;
 pub mod light;
 pub mod output;
@@ -22,7 +21,6 @@ pub mod renderer;
 pub mod rpf;
 pub mod sampler;
 pub mod surface;
-pub mod surface_grid;
 pub mod world;
 
 pub use camera::Camera;

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::Rng;
-use pathlight_render::surface_grid::{Cell, SurfaceGrids};
+use pathlight_render::frame::texture_cache::surface_grid::{Cell, SurfaceGrids};
 use pathlight_render::World;
 
 /// The shared scenes (relative to `scenes/`), each loaded as `pathlight info` loads it.
@@ -183,7 +183,7 @@ fn every_triangle_has_its_cells_and_each_cell_its_surface() {
 fn the_cells_level_follows_the_footprint() {
     use glam::Vec3;
     use pathlight_render::config::CameraConfig;
-    use pathlight_render::footprint::Footprint;
+    use pathlight_render::frame::texture_cache::footprint::Footprint;
     use pathlight_render::Config;
     let world = World::new(
         pathlight_scene::load(None, &Default::default()).unwrap(),

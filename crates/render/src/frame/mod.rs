@@ -32,10 +32,16 @@
 //! display       display           a stage's view                      -> 8-bit RGBA
 //! ```
 //!
-//! The primary and lighting passes are fused by runs of pixels ([`trace`]) unless a stage
-//! lights the first hits from the whole frame's (ReSTIR) or the lighting pass looks them up in
-//! the texture cache ([`texture_cache`]): then the primary pass runs over the whole frame
-//! first. The *plan* ([`plan`]) says which pixels they trace and from which sample
+//! The lighting pass asks one trait for the light at each pixel's first hit,
+//! [`trace::FirstHitLight`], called once per run of pixels (its code within a run
+//! monomorphised). The plain lighting's is next event estimation ([`trace::NextEvent`]), and
+//! the primary and lighting passes are then fused by runs of pixels ([`trace`]). ReSTIR's frame
+//! implements it with each pixel's reservoir as its direct light, after its own passes over the
+//! whole frame's first hits; the texture cache's ([`texture_cache::TextureCache::begin`])
+//! looks each pixel's light up and takes its direct light from the light beneath it (next
+//! event estimation or ReSTIR's), so the two compose. With either, the primary pass runs over
+//! the whole frame first. The driver builds the chain from the stages' frames and hands it to
+//! the passes as a `&mut dyn FirstHitLight`, naming none of their types. The *plan* ([`plan`]) says which pixels they trace and from which sample
 //! index: every pixel from `frames * spp` in the plain pipeline; with seed 000's techniques,
 //! each pixel from its own sample count, and with adaptive sampling ([`adaptive`]) only the
 //! pixels its schedule picks. The state the stages share (buffers, cameras, counters, the
@@ -57,8 +63,11 @@
 //!
 //! Adding a stage: its module here (its settings with `validate()`, its state, passes, rules
 //! and views, `impl Stage`), its field in `FrameConfig`, and its line in the driver (with its
-//! entry in the driver's `stages()` and in [`views::STAGES`]). Adding a view: its stage's file
-//! only.
+//! entry in the driver's `stages()` and in [`views::STAGES`]). A stage that gives the light at
+//! the first hits implements [`trace::FirstHitLight`] on its frame's state (its passes in
+//! `prepare`, the pixels' direct light in `direct` or whole runs in `light_run`, its end of
+//! frame in `finish`), taking the light beneath it if it composes, and the driver puts it in
+//! the chain. Adding a view: its stage's file only.
 //!
 //! Buffers live across frames and are reallocated only when the resolution changes.
 

@@ -21,7 +21,7 @@ use super::restir::{Restir, RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL};
 use super::stage::{view_index, Stage};
 use super::state::{Change, FrameState, PassTime, Times};
 use super::texture_cache::{CacheReport, TextureCache, TEXTURE_CACHE};
-use super::trace::{self, FirstHitLight, Lighting, Primary, Uniform, LIGHTING, PRIMARY};
+use super::trace::{self, FirstHitLight, Lighting, NextEvent, Primary, Uniform, LIGHTING, PRIMARY};
 
 /// Every pass, in the order a frame runs them.
 pub const PASSES: [&str; 10] = [
@@ -186,8 +186,7 @@ impl Pipeline {
         let cfg = &config.frame;
         // Seed 000's techniques: each pixel continues its own sample count.
         let counts = cfg.adaptive.enabled || cfg.reprojection.enabled;
-        // Pixels' counts differ (the report counts them): seed 000's, or the texture cache's
-        // edges' samples.
+        // Pixels' counts differ (the report counts them): seed 000's, or the cache's edges'.
         let tc = &cfg.texture_cache;
         let varying = counts || (tc.enabled && tc.edge_spp > f.spp);
         let traced = !(cfg.accumulate && cfg.max_frames > 0 && f.frames >= cfg.max_frames);
@@ -207,21 +206,22 @@ impl Pipeline {
             let (plan, above, end, threshold) =
                 plan(cfg, &f.history, frame, adaptive, reprojection);
             (above_one, tau) = (above, threshold);
-            // Primary visibility, seed 004's ReSTIR on the whole frame's first hits, lighting.
+            // Primary visibility, the light at the first hits (seeds 004 and 002), lighting.
+            let (mut plain, mut cache) = (NextEvent, None);
             let mut restir = cfg.restir.enabled.then(|| restir.frame(&cfg.restir, index));
-            let first_hits = restir.as_mut().map(|r| r as &mut dyn FirstHitLight);
-            // Seed 002's texture cache, looked up (and filled) by the lighting pass.
-            let (settings, pixels) = (f.settings, f.pixels());
-            let mut cache = (cfg.texture_cache.enabled)
-                .then(|| texture_cache.begin(world, &cfg.texture_cache, settings, &camera, pixels));
+            let below: &mut dyn FirstHitLight = restir.as_mut().map_or(&mut plain as _, |r| r as _);
+            let light = match tc.enabled {
+                true => cache.insert(texture_cache.begin(&tracer, tc, f.pixels(), below)) as _,
+                false => below,
+            };
             let previous = f.previous_camera.as_ref();
             let (g, l, hits, times) = (&mut f.gbuffer, &mut f.lighting, &mut f.hits, &mut f.times);
-            let with_cache = cache.as_mut().map(|(c, records)| (&*c, &mut **records));
-            rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, first_hits, with_cache));
-            if let Some((c, _)) = &cache {
-                rays += c.top_up(&tracer, pixels, &mut f.times);
-                cache_report = Some(texture_cache.end(&mut f.times, LIGHTING));
-            }
+            rays += with_plan!(&plan, p => trace::frame(g, l, hits, times, previous, &tracer, p, light));
+            drop(cache);
+            let ended = tc
+                .enabled
+                .then(|| texture_cache.end(&tracer, tc, &mut f.times, LIGHTING));
+            (rays, cache_report) = (rays + ended.map_or(0, |e| e.0), ended.map(|e| e.1));
             // Seed 000: the samples reprojected pixels lack (`fresh_spp`).
             let t = Instant::now();
             rays += reprojection.repair(&cfg.reprojection, f, &tracer);

@@ -5,15 +5,20 @@
 //! ```text
 //! primary   camera, previous camera, plan  -> G-buffer, first hits
 //! lighting  first hits, G-buffer, plan,    -> lighting (direct / indirect statistics, first
-//!           direct light at the first hit     bounce)
+//!           the light at the first hits       bounce)
 //! ```
 //!
-//! When no stage needs the whole frame's first hits before the lighting pass, the two passes
-//! are fused: a run's first hits go straight from one pass to the other while they are in
-//! cache ([`fused`]). Otherwise ([`primary`], then [`lighting`](fn@lighting)) the first hits are kept for
-//! the whole frame in [`FrameState::hits`](super::state::FrameState::hits), and the lighting
-//! pass may take each pixel's direct light at its first hit from a stage (ReSTIR's
-//! reservoirs).
+//! The lighting pass asks one trait, [`FirstHitLight`], for the light at each pixel's first
+//! hit. The plain lighting's ([`NextEvent`]: next event estimation there) needs nothing of the
+//! whole frame, and the two passes are fused: a run's first hits go straight from one pass to
+//! the other while they are in cache ([`fused`]). Otherwise ([`primary`], the light's own
+//! passes ([`FirstHitLight::prepare`]), then [`lighting`](fn@lighting)) the first hits are
+//! kept for the whole frame in [`FrameState::hits`](super::state::FrameState::hits), and the
+//! lighting pass hands each run's traced pixels ([`Run`]) to the light: ReSTIR's reservoirs
+//! give each pixel's direct light at its first hit; the texture cache looks each pixel's light
+//! up, its direct light from the light beneath it (next event estimation or the reservoirs).
+//! A stage plugs in by implementing the trait on its frame's state and handing it to the
+//! driver, wrapping the light beneath it if it composes.
 
 use std::time::Instant;
 
@@ -29,7 +34,6 @@ use super::gbuffer::{self, GBuffer, GPixel, PrimaryHit};
 use super::lighting::{self, LightSample};
 use super::stage::Stage;
 use super::state::{FrameState, Times};
-use super::texture_cache::{CacheFrame, CachePixel};
 
 /// Pixels per parallel task: a run of pixels in row-major order, small enough that its first
 /// hits stay in the L1/L2 cache between the primary and the lighting pass.
@@ -293,79 +297,73 @@ pub fn primary<P: Plan>(
         .sum()
 }
 
-/// The lighting pass over the first hits [`primary`] kept: each traced pixel's samples, the
-/// first one's direct light at its first hit from `direct(pixel, &mut shadow_rays)` where it
-/// gives one (next event estimation elsewhere), through the texture cache when there is one
-/// (`cache`, with each pixel's record). Returns the rays traced.
+/// The lighting pass over the first hits [`primary`] kept: each run's traced pixels lit by
+/// `light` ([`FirstHitLight::light_run`]), along the image's rows or down its columns as it
+/// asks. Returns the rays traced.
 pub fn lighting<P: Plan>(
     gbuffer: &GBuffer,
     lighting: &mut [LightSample],
     hits: &[Vec<Option<PrimaryHit>>],
     tracer: &PathTracer,
     plan: &P,
-    direct: &(impl Fn(usize, &mut u32) -> Option<Vec3> + Sync),
-    cache: Option<(&CacheFrame, &mut [CachePixel])>,
+    light: &dyn FirstHitLight,
 ) -> u64 {
     let w = gbuffer.width.max(1) as usize;
     let along = plan.along_first_bounce();
-    // Run `b` (its pixels' light `ls`, first hits `run`, and with the cache its pixels'
-    // records).
-    let light_run = |b: usize,
+    // Run `b` (its pixels' light `ls`, first hits `hits`): its traced pixels listed in
+    // `pixels` (scratch), then lit.
+    let light_run = |pixels: &mut Vec<RunPixel>,
+                     b: usize,
                      ls: &mut [LightSample],
-                     run: &Vec<Option<PrimaryHit>>,
-                     mut cache: Option<(&CacheFrame, &mut [CachePixel])>| {
-        let mut rays = 0;
+                     hits: &[Option<PrimaryHit>]| {
         let start = b * RUN;
-        for (k, ((l, hit), (x, y))) in ls.iter_mut().zip(run).zip(run_pixels(start, w)).enumerate()
-        {
-            let Some(hit) = hit else { continue };
+        pixels.clear();
+        for (k, (hit, (x, y))) in hits.iter().zip(run_pixels(start, w)).enumerate() {
             let p = start + k;
-            let Some(index) = plan.sample(p) else {
+            let Some(index) = hit.as_ref().and_then(|_| plan.sample(p)) else {
                 continue;
             };
             let spp = plan.keep(p, &gbuffer.pixels[p]);
-            let mut shadow = 0;
-            let d = if spp > 0 {
-                direct(p, &mut shadow)
-            } else {
-                None
-            };
-            let (sample, r) = match cache.as_mut() {
-                Some((c, rec)) => {
-                    let samples = (index, spp);
-                    c.light(tracer, x, y, hit, samples, gbuffer, along, d, &mut rec[k])
-                }
-                None => lighting::light(tracer, x, y, hit, index, spp, along, d),
-            };
-            *l = sample;
-            rays += r + shadow as u64;
+            pixels.push(RunPixel {
+                k,
+                x,
+                y,
+                index,
+                spp,
+            });
         }
-        rays
+        let run = Run {
+            start,
+            pixels,
+            hits,
+            gbuffer,
+            along,
+        };
+        light.light_run(tracer, &run, ls)
     };
-    let Some((cache, records)) = cache else {
+    if !light.by_columns() {
         return lighting
             .par_chunks_mut(RUN)
             .zip(hits.par_iter())
             .enumerate()
-            .map(|(b, (ls, run))| light_run(b, ls, run, None))
+            .map_init(Vec::new, |pixels, (b, (ls, run))| {
+                light_run(pixels, b, ls, run)
+            })
             .sum();
-    };
-    // With the texture cache, the runs go down columns of the image, one after the other,
-    // rather than along its rows: the cells a run needs (with their filter's neighbours) are
-    // then mostly those the runs just above needed, and a small cache holds them. Columns of
-    // an eighth of the image's width (at least a run): at 1920x1080 and one byte per pixel
-    // (the paper's budget), 25% more cells shaded than with an unbounded cache, 31% with
-    // columns of 128 pixels, 72% with 512, 17x along the rows (BENCHMARKS.md, "Seed 002").
+    }
+    // Down columns of the image, one after the other, rather than along its rows (the texture
+    // cache): the cells a run needs (with their filter's neighbours) are then mostly those the
+    // runs just above needed, and a small cache holds them. Columns of an eighth of the
+    // image's width (at least a run): at 1920x1080 and one byte per pixel (the paper's
+    // budget), 25% more cells shaded than with an unbounded cache, 31% with columns of 128
+    // pixels, 72% with 512, 17x along the rows (BENCHMARKS.md, "Seed 002").
     let band = (w / 8).max(RUN);
-    let mut runs: Vec<_> = lighting
-        .chunks_mut(RUN)
-        .zip(hits)
-        .zip(records.chunks_mut(RUN))
-        .enumerate()
-        .collect();
+    let mut runs: Vec<_> = lighting.chunks_mut(RUN).zip(hits).enumerate().collect();
     runs.sort_by_key(|&(b, _)| ((b * RUN % w) / band, b));
     runs.into_par_iter()
-        .map(|(b, ((ls, run), records))| light_run(b, ls, run, Some((cache, records))))
+        .map_init(Vec::new, |pixels, (b, (ls, run))| {
+            light_run(pixels, b, ls, run)
+        })
         .sum()
 }
 
@@ -395,29 +393,127 @@ fn primary_run(
     rays
 }
 
-/// A stage that lights each pixel's first hit from the whole frame's first hits (ReSTIR's
-/// reservoirs): it runs between the primary and lighting passes, which then are not fused.
+/// A traced pixel of a run, as the lighting pass hands it to a [`FirstHitLight`]: its index in
+/// the run, its place, its first sample index and its samples this frame.
+#[derive(Debug, Clone, Copy)]
+pub struct RunPixel {
+    pub k: usize,
+    pub x: u32,
+    pub y: u32,
+    pub index: u32,
+    pub spp: u32,
+}
+
+/// A run of pixels in the lighting pass: those traced ([`RunPixel`]), the run's first hits
+/// (by index in the run), the G-buffer, and whether the first sample measures the radiance
+/// along its first bounce.
+pub struct Run<'a> {
+    /// The run's first pixel (a multiple of [`RUN`]).
+    pub start: usize,
+    pub pixels: &'a [RunPixel],
+    pub hits: &'a [Option<PrimaryHit>],
+    pub gbuffer: &'a GBuffer,
+    pub along: bool,
+}
+
+impl Run<'_> {
+    /// Each traced pixel's lighting into `out` (by index in the run): `light(pixel, its first
+    /// hit, its first sample's direct light there)`, that direct light from `direct(pixel's
+    /// index in the frame, &mut shadow rays)` where the pixel takes samples. Returns the rays
+    /// traced, shadow rays included.
+    #[inline(always)]
+    pub fn each(
+        &self,
+        out: &mut [LightSample],
+        direct: impl Fn(usize, &mut u32) -> Option<Vec3>,
+        mut light: impl FnMut(&RunPixel, &PrimaryHit, Option<Vec3>) -> (LightSample, u64),
+    ) -> u64 {
+        let mut rays = 0;
+        for px in self.pixels {
+            let Some(hit) = &self.hits[px.k] else {
+                continue;
+            };
+            let mut shadow = 0;
+            let d = match px.spp > 0 {
+                true => direct(self.start + px.k, &mut shadow),
+                false => None,
+            };
+            let (sample, r) = light(px, hit, d);
+            out[px.k] = sample;
+            rays += r + shadow as u64;
+        }
+        rays
+    }
+}
+
+/// The light at a pixel's first hit: what the lighting pass asks each pixel's lighting of. The
+/// plain lighting's is next event estimation ([`NextEvent`]); a stage that lights the first
+/// hits from the whole frame's (ReSTIR's reservoirs) gives each pixel's direct light there; a
+/// stage that looks the light up (the texture cache) lights whole runs itself, asking the light
+/// beneath it for the direct light (a cached pixel's is then its reservoir's). Each is called
+/// once per run of pixels ([`light_run`](Self::light_run), dynamically dispatched), and within
+/// it per pixel and sample by its own code (monomorphised).
 pub trait FirstHitLight: Sync {
+    /// Its light is next event estimation's at every first hit and it needs no pass of its
+    /// own: the primary and lighting passes are then fused by runs ([`fused`]).
+    fn fused(&self) -> bool {
+        false
+    }
     /// Its passes over the frame's first hits (`hits`, by runs of [`RUN`] pixels; `None`
-    /// where a pixel is not traced), timed into `times`; returns the rays traced.
+    /// where a pixel is not traced), between the primary and the lighting pass, timed into
+    /// `times`; returns the rays traced.
     fn prepare(
         &mut self,
         tracer: &PathTracer,
         gbuffer: &GBuffer,
         hits: &[Vec<Option<PrimaryHit>>],
         times: &mut Times,
-    ) -> u64;
+    ) -> u64 {
+        let _ = (tracer, gbuffer, hits, times);
+        0
+    }
     /// The direct light of pixel `pixel`'s first sample at its first hit, which replaces next
     /// event estimation there (`None`: next event estimation), counting its shadow rays.
-    fn direct(&self, tracer: &PathTracer, pixel: usize, rays: &mut u32) -> Option<Vec3>;
+    fn direct(&self, tracer: &PathTracer, pixel: usize, rays: &mut u32) -> Option<Vec3> {
+        let _ = (tracer, pixel, rays);
+        None
+    }
+    /// The lighting pass takes the runs down columns of the image instead of along its rows.
+    fn by_columns(&self) -> bool {
+        false
+    }
+    /// The lighting of `run`'s traced pixels into `out` (by index in the run); returns the
+    /// rays traced. By default each pixel's path traced from its first hit
+    /// ([`lighting::light`]) with its [`direct`](Self::direct) light there.
+    fn light_run(&self, tracer: &PathTracer, run: &Run, out: &mut [LightSample]) -> u64 {
+        run.each(
+            out,
+            |p, r| self.direct(tracer, p, r),
+            |px, hit, d| lighting::light(tracer, px.x, px.y, hit, px.index, px.spp, run.along, d),
+        )
+    }
     /// After the lighting pass: the frame's state becomes the previous frame's.
-    fn finish(&mut self, gbuffer: &GBuffer);
+    fn finish(&mut self, gbuffer: &GBuffer) {
+        let _ = gbuffer;
+    }
 }
 
-/// The frame's primary and lighting passes over the pixels `plan` picks: fused by runs, or,
-/// with a stage that lights the first hits (`first_hits`), the primary pass over the whole
-/// frame, that stage, then the lighting pass. Timed into `times` (the fused passes' wall time
-/// split in proportion to the thread time each took); returns the rays traced.
+/// The plain lighting: next event estimation (with multiple importance sampling) at every
+/// first hit, fused with the primary pass.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NextEvent;
+
+impl FirstHitLight for NextEvent {
+    fn fused(&self) -> bool {
+        true
+    }
+}
+
+/// The frame's primary and lighting passes over the pixels `plan` picks, each pixel's first
+/// hit lit by `light`: fused by runs (next event estimation, [`FirstHitLight::fused`]), or
+/// the primary pass over the whole frame, `light`'s passes, then the lighting pass. Timed into
+/// `times` (the fused passes' wall time split in proportion to the thread time each took);
+/// returns the rays traced.
 #[allow(clippy::too_many_arguments)]
 pub fn frame<P: Plan>(
     gbuffer: &mut GBuffer,
@@ -427,11 +523,10 @@ pub fn frame<P: Plan>(
     previous: Option<&Camera>,
     tracer: &PathTracer,
     plan: &P,
-    first_hits: Option<&mut dyn FirstHitLight>,
-    cache: Option<(&CacheFrame, &mut [CachePixel])>,
+    light: &mut dyn FirstHitLight,
 ) -> u64 {
     let t = Instant::now();
-    if first_hits.is_none() && cache.is_none() {
+    if light.fused() {
         let traced = fused(gbuffer, lighting, previous, tracer, plan);
         let wall = t.elapsed().as_secs_f64() * 1e3;
         let primary_ms =
@@ -442,24 +537,10 @@ pub fn frame<P: Plan>(
     }
     let mut rays = primary(gbuffer, lighting, hits, previous, tracer, plan);
     times.since(PRIMARY, t);
-    let mut stage = first_hits;
-    if let Some(stage) = stage.as_deref_mut() {
-        rays += stage.prepare(tracer, gbuffer, hits, times);
-    }
+    rays += light.prepare(tracer, gbuffer, hits, times);
     let t = Instant::now();
-    let light = stage.as_deref();
-    rays += self::lighting(
-        gbuffer,
-        lighting,
-        hits,
-        tracer,
-        plan,
-        &|p, r: &mut u32| light.and_then(|l| l.direct(tracer, p, r)),
-        cache,
-    );
-    if let Some(stage) = stage {
-        stage.finish(gbuffer);
-    }
+    rays += self::lighting(gbuffer, lighting, hits, tracer, plan, &*light);
+    light.finish(gbuffer);
     times.since(LIGHTING, t);
     rays
 }

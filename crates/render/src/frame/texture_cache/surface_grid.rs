@@ -16,7 +16,7 @@
 //! world whatever the triangulation. `base_cell` is the scene's diagonal over
 //! [`BASE_CELLS`]: finer than any pixel's footprint at the resolutions the pipeline runs.
 //!
-//! **Level of detail** (Eq. 1 with `w = h = R_0`, [`crate::footprint`]): `l = log2 min(R_0
+//! **Level of detail** (Eq. 1 with `w = h = R_0`, [`super::footprint`]): `l = log2 min(R_0
 //! |db/dx|, R_0 |db/dy|)`, then `floor(l + lod_bias)` clamped to the triangle's levels.
 //!
 //! **Keys** (Eq. 3): a cell is `(instance, triangle, side, level, cell index)`; its key for the
@@ -40,7 +40,7 @@ use glam::{UVec2, Vec2, Vec3};
 use pathlight_accel::{Hit, Ray};
 use pathlight_core::rng::hash;
 
-use crate::footprint::{Footprint, Level};
+use super::footprint::{Footprint, Level};
 use crate::surface::Surface;
 use crate::world::World;
 
