@@ -11,7 +11,7 @@ use pathlight_accel::{Accel, Hit, NativeBvh, Ray, RayKind, RaySets, SceneTriangl
 use rayon::prelude::*;
 use serde_json::json;
 
-use crate::config_args::{check_realtime, ConfigArgs};
+use crate::config_args::ConfigArgs;
 use crate::scene_args::SceneArgs;
 
 #[derive(Debug, Clone, Args)]
@@ -542,14 +542,6 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
     let name = scene.name.clone();
     let world = pool.install(|| World::new(scene, config.light_selection));
     let (config, choice) = args.settings.for_scene(&world.lights)?;
-    check_realtime(&config)?;
-    if let Some(c) = &choice {
-        eprintln!(
-            "preset: {} ({}; --plain for none)",
-            c.preset.name(),
-            c.reason
-        );
-    }
     let setup_ms = setup.elapsed().as_secs_f64() * 1e3;
     let total = args.frames + WARM_UP_FRAMES;
     let orbit = CameraPath {

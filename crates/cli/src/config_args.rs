@@ -346,6 +346,7 @@ impl ConfigArgs {
     /// ([`preset::choose`], returned with its reason); else the plain pipeline or the file's
     /// `preset`; then the file's settings and the flags ([`apply`](Self::apply)). The presets
     /// leave the light selection as it is, so `lights` stay those of the configuration.
+    /// Checked ([`check_realtime`]); the choice is printed with its reason.
     pub fn for_scene(&self, lights: &Lights) -> Result<(Config, Option<Choice>)> {
         let named = match &self.config {
             Some(path) => read_config(path)?.0,
@@ -374,7 +375,16 @@ impl ConfigArgs {
             };
             (preset.config(&Config::realtime()), None)
         };
-        Ok((self.apply(base)?, choice))
+        let config = self.apply(base)?;
+        check_realtime(&config)?;
+        if let Some(c) = &choice {
+            eprintln!(
+                "preset: {} ({}; --plain for none)",
+                c.preset.name(),
+                c.reason
+            );
+        }
+        Ok((config, choice))
     }
 
     /// The configuration: `base`, then the `--config` file, then the flags. Not checked yet:

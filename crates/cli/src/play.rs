@@ -15,7 +15,7 @@ use pathlight_render::{Config, World};
 use serde::Serialize;
 
 use crate::bench::Summary;
-use crate::config_args::{check_realtime, ConfigArgs};
+use crate::config_args::ConfigArgs;
 use crate::terminal::{ctrl_c_flag, progress_bar, thread_pool};
 use crate::SceneArgs;
 
@@ -209,14 +209,6 @@ pub fn run(args: &PlayArgs) -> Result<()> {
     let pool = thread_pool(args.threads)?;
     let world = pool.install(|| args.scene.load_world(config.light_selection))?;
     let (config, choice) = args.settings.for_scene(&world.lights)?;
-    check_realtime(&config)?;
-    if let Some(c) = &choice {
-        eprintln!(
-            "preset: {} ({}; --plain for none)",
-            c.preset.name(),
-            c.reason
-        );
-    }
     let path = load_path(&args.path, &world, &config)?;
     let views = world.path_views(&path);
     let per_view = path.frames_per_view.max(1) as u64;

@@ -8,7 +8,7 @@ use clap::Args;
 use pathlight_render::Config;
 use pathlight_viewer::ViewerOptions;
 
-use crate::config_args::{check_realtime, parse_size, ConfigArgs};
+use crate::config_args::{parse_size, ConfigArgs};
 use crate::SceneArgs;
 
 #[derive(Debug, Args)]
@@ -71,14 +71,6 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     }
     let world = args.scene.load_world(config.light_selection)?;
     let (config, choice) = args.settings.for_scene(&world.lights)?;
-    check_realtime(&config)?;
-    if let Some(c) = &choice {
-        eprintln!(
-            "preset: {} ({}; --plain for none)",
-            c.preset.name(),
-            c.reason
-        );
-    }
     let title = format!("pathlight: {}", world.scene.name);
     let options = ViewerOptions {
         title,

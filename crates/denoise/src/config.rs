@@ -155,7 +155,7 @@ pub struct FilterConfig {
     /// `[frame.filter.taa]`: temporal antialiasing (SVGF's last stage, and `method = "taa"`).
     pub taa: TaaConfig,
     /// `[frame.filter.rpf]`: Random Parameter Filtering, the offline baseline.
-    pub rpf: RpfConfig,
+    pub rpf: crate::rpf::RpfParams,
 }
 
 /// `[frame.filter.data_driven]`: the data-driven filter (seed 001; module docs for its
@@ -163,20 +163,20 @@ pub struct FilterConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DataDrivenConfig {
-    /// the window's width in pixels (odd).
+    /// The window's width in pixels (odd).
     pub kernel: u32,
-    /// every other pixel of the window in each direction ("with holes").
+    /// Every other pixel of the window in each direction ("with holes").
     pub holes: bool,
-    /// sigma of the direct light's colour test, in `colour_units` (standard
+    /// Sigma of the direct light's colour test, in `colour_units` (standard
     /// errors of the difference by default; the thesis's 0.75 is in radiance).
     pub sigma_direct: f32,
-    /// sigma of the indirect light's colour test (the thesis's 0.5).
+    /// Sigma of the indirect light's colour test (the thesis's 0.5).
     pub sigma_indirect: f32,
     pub sigma_depth: f32,
     pub sigma_normal: f32,
     pub sigma_texture: f32,
     pub sigma_texture2: f32,
-    /// the indirect light's test on texture2, the albedo at the second hit
+    /// The indirect light's test on texture2, the albedo at the second hit
     /// (the thesis's; off by default: over a few samples the mean of a random bounce's
     /// albedo is noise, and the test refuses neighbours at random).
     pub texture2_test: bool,
@@ -186,31 +186,31 @@ pub struct DataDrivenConfig {
     pub variance_scale: [f32; 5],
     pub depth_units: DepthUnits,
     pub colour_units: ColourUnits,
-    /// how the colour test weighs the channels of a difference (not in the
+    /// How the colour test weighs the channels of a difference (not in the
     /// thesis).
     pub colour_weights: ColourWeights,
-    /// filter the light divided by the albedo (the illumination), then multiply
+    /// Filter the light divided by the albedo (the illumination), then multiply
     /// it back (not in the thesis).
     pub demodulate: bool,
-    /// variance units: each pixel's standard error taken over its 3x3
+    /// Variance units: each pixel's standard error taken over its 3x3
     /// neighbourhood (the root of the mean of the squares), as SVGF blurs its variance: a few
     /// samples' variance is itself noisy (not in the thesis).
     pub error_blur: bool,
-    /// variance units: how the two pixels' standard errors combine (not in the
+    /// Variance units: how the two pixels' standard errors combine (not in the
     /// thesis).
     pub error_pair: ErrorPair,
-    /// at a metallic pixel, whose light is a glossy reflection that turns with
+    /// At a metallic pixel, whose light is a glossy reflection that turns with
     /// the normal, the normal test's sigma is at most this times the lobe's GGX alpha
     /// (roughness squared, at least 0.01), blended by the metallic factor; 0 keeps
     /// `sigma_normal` everywhere, the thesis's test (not in the thesis).
     pub sigma_normal_lobe: f32,
-    /// in the frame: a pixel only some of whose samples hit a surface (a
+    /// In the frame: a pixel only some of whose samples hit a surface (a
     /// silhouette against the sky) is filtered as its hits alone (the sky's light taken out,
     /// the rest divided by the hits' share; the filtered light scaled back and the sky's
     /// added) where the frame knows every sample's sky (one sample per frame); off, or where
     /// it does not, the mixture is filtered with its hits' features (not in the thesis).
     pub sky_coverage: bool,
-    /// variance units: each pixel's filtered light is blended with its own by
+    /// Variance units: each pixel's filtered light is blended with its own by
     /// their squared errors, estimated with Stein's unbiased risk estimate (SURE) and averaged
     /// over the pixel's `(2 sure_radius + 1)^2` neighbourhood, direct and indirect apart: where
     /// the filter moved the pixel further than its noise explains, its own light takes over
@@ -219,7 +219,7 @@ pub struct DataDrivenConfig {
     /// `sure`: the radius of the neighbourhood the risk estimates are averaged
     /// over (0: the pixel's own).
     pub sure_radius: u32,
-    /// on the accumulated image of a still camera (and SVGF's handover to it):
+    /// On the accumulated image of a still camera (and SVGF's handover to it):
     /// the image is filtered again only once the epoch's accumulated frames have grown by this
     /// factor since it was last filtered, and shown as it was meanwhile, as offline renderers
     /// denoise every so many passes (not in the thesis), but for the light a pixel showed as
@@ -263,17 +263,17 @@ impl Default for DataDrivenConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SvgfConfig {
-    /// a-trous iterations.
+    /// A-trous iterations.
     pub atrous_iterations: u32,
-    /// the a-trous kernel's width, 5 (the paper's B3 spline) or 3 (the linear
+    /// The a-trous kernel's width, 5 (the paper's B3 spline) or 3 (the linear
     /// B-spline: a third of the taps; not in the paper). 3 by default: along camera paths as
     /// good or better on every scene measured, in 0.6x the time (BENCHMARKS.md, "Seed 001").
     pub atrous_kernel: u32,
-    /// integrate and filter direct and indirect light apart (the paper's two signals);
+    /// Integrate and filter direct and indirect light apart (the paper's two signals);
     /// false filters their sum as one signal (not in the paper: about 40% fewer operations
     /// per tap).
     pub split: bool,
-    /// the reprojection's normal test. `k > 0` (16 by default) keeps a previous pixel
+    /// The reprojection's normal test. `k > 0` (16 by default) keeps a previous pixel
     /// whose normal lies within `k (w + 0.01)` of this one's, `w` this pixel's normal width
     /// (over its four neighbours, the smaller of each axis's two differences), as the paper's
     /// authors' implementation tests against the normal's screen-space width: normal-mapped
@@ -281,21 +281,21 @@ pub struct SvgfConfig {
     /// is tested more tightly than by a cosine of 0.9. 0 keeps a previous pixel whose normal's
     /// cosine with this one's is at least 0.9 (this filter's first test; not in the paper).
     pub normal_width: f32,
-    /// temporal antialiasing of the output (the paper applies it after the filter;
+    /// Temporal antialiasing of the output (the paper applies it after the filter;
     /// [`crate::taa`]): each pixel blended with its reprojected previous output (weight 0.7),
     /// clamped to this frame's 3x3 neighbourhood's mean plus and minus half a standard
     /// deviation (in YCoCg of light compressed by its luminance). On by default (the paper's
     /// last stage): along every orbit measured 15-45% less CIELUV error and 2.4-5x less
     /// flicker, for 3-5 ms at 640x360.
     pub taa: bool,
-    /// converge while the camera is still (not in the paper): a pixel whose motion
+    /// Converge while the camera is still (not in the paper): a pixel whose motion
     /// vector is 0 takes each frame into a plain mean of its history instead of at a weight of
     /// 0.2, and its luminance test narrows with the mean's noise, so a still view converges
     /// to the path tracer's image; a pixel that moves is filtered as the paper does
     /// ([`crate::svgf`]). On by default: better at 32 and 128 still frames on every scene
     /// measured, and a moving camera's frames are the same bit for bit.
     pub converge: bool,
-    /// once the camera has been still for this many frames, the data-driven filter of
+    /// Once the camera has been still for this many frames, the data-driven filter of
     /// the accumulated image (with this configuration's data-driven parameters) takes over
     /// until it moves again; 0 never (not in the paper). Needs `frame.accumulate`: the frame
     /// gathers the features' statistics of every frame of a still camera (from each epoch's
@@ -340,37 +340,6 @@ impl Default for TaaConfig {
         Self {
             alpha: crate::taa::ALPHA,
             gamma: crate::taa::GAMMA,
-        }
-    }
-}
-
-/// `[frame.filter.rpf]`: Random Parameter Filtering.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct RpfConfig {
-    /// the passes' box widths, largest first (the paper's 55, 35, 17, 7).
-    pub boxes: Vec<u32>,
-    /// `sigma_8^2`, the noise level at 8 samples per pixel (0.02 for indoor scenes, the
-    /// paper's 0.002 for outdoor ones).
-    pub noise: f32,
-    /// the technical report's outlier step after each pass, the pixel's mean kept.
-    pub outliers: bool,
-    /// filter each sample's colour divided by its base colour, then multiply it back
-    /// (not in the paper).
-    pub demodulate: bool,
-    /// samples of the sky (camera rays that left the scene) pass through unfiltered and
-    /// are no pixel's neighbours (not in the paper).
-    pub sky: bool,
-}
-
-impl Default for RpfConfig {
-    fn default() -> Self {
-        Self {
-            boxes: vec![55, 35, 17, 7],
-            noise: 0.02,
-            outliers: true,
-            demodulate: false,
-            sky: true,
         }
     }
 }
@@ -423,7 +392,7 @@ struct FilterFile {
     data_driven: DataDrivenConfig,
     svgf: SvgfConfig,
     taa: TaaConfig,
-    rpf: RpfConfig,
+    rpf: crate::rpf::RpfParams,
     #[serde(flatten)]
     moved: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
 }
@@ -634,12 +603,8 @@ impl FilterConfig {
     /// RPF's parameters, with the seed of its random draws.
     pub fn rpf_params(&self, seed: u64) -> crate::rpf::RpfParams {
         crate::rpf::RpfParams {
-            boxes: self.rpf.boxes.clone(),
-            noise: self.rpf.noise,
-            outliers: self.rpf.outliers,
-            demodulate: self.rpf.demodulate,
-            sky: self.rpf.sky,
             seed,
+            ..self.rpf.clone()
         }
     }
 }

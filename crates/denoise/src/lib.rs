@@ -26,7 +26,7 @@ pub mod taa;
 
 pub use config::{
     ranges, ColourUnits, ColourWeights, DataDrivenConfig, DepthUnits, ErrorPair, FilterConfig,
-    Method, RpfConfig, SvgfConfig, TaaConfig,
+    Method, SvgfConfig, TaaConfig,
 };
 pub use data_driven::DataDriven;
 pub use features::Features;

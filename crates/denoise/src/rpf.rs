@@ -91,8 +91,10 @@ impl FeatureKind {
     }
 }
 
-/// RPF's parameters.
-#[derive(Debug, Clone, PartialEq)]
+/// RPF's parameters; as pathlight's configuration, `[frame.filter.rpf]` (the seed is the
+/// configuration's own, not written there).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct RpfParams {
     /// Box widths of the passes, largest first (the paper's 55, 35, 17, 7).
     pub boxes: Vec<u32>,
@@ -110,6 +112,7 @@ pub struct RpfParams {
     /// filter's sky pixels, sample by sample).
     pub sky: bool,
     /// Seed of the neighbourhoods' random draws.
+    #[serde(skip)]
     pub seed: u64,
 }
 
