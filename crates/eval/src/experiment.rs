@@ -209,6 +209,11 @@ impl Runner<'_> {
             displays: Vec::new(),
         };
         for c in &spec.configurations {
+            let config = c.config_for(&world.lights);
+            let c = &crate::spec::Configuration {
+                config,
+                ..c.clone()
+            };
             world.set_light_selection(c.config.light_selection);
             let world = &world;
             for rep in 0..spec.repetitions {

@@ -204,9 +204,87 @@ impl Default for ReferenceSpec {
 pub struct Configuration {
     pub name: String,
     /// Settings of the frame pipeline (`spp` is samples per frame); width and height come
-    /// from the spec, the view from the camera path.
+    /// from the spec, the view from the camera path. With `preset`, over that preset.
     #[serde(default)]
     pub config: Config,
+    /// A preset ([`pathlight_render::preset::Preset::name`]) the configuration starts from,
+    /// its `config` table applied over it (resolved when the spec is read); or `"auto"`: the
+    /// preset the rule chooses for each scene from its lights, as `view`, `play` and `bench
+    /// frame` run without a configuration (resolved per scene; it takes no `config` table).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
+}
+
+/// The value of `preset` that lets the rule choose per scene.
+pub const AUTO: &str = "auto";
+
+impl Configuration {
+    /// Its settings for a scene lit by `lights`: `config`, or with `preset = "auto"` the
+    /// preset the rule chooses for them.
+    pub fn config_for(&self, lights: &pathlight_render::light::Lights) -> Config {
+        match self.preset.as_deref() {
+            Some(AUTO) => pathlight_render::preset::choose(lights)
+                .preset
+                .config(&Config::default()),
+            _ => self.config.clone(),
+        }
+    }
+}
+
+/// Resolves each `[[configuration]]`'s named `preset` (its `config` table applied over the
+/// preset) in a spec's TOML; `"auto"` is left for the run. `Ok(None)`: no preset named.
+fn resolve_presets(text: &str) -> Result<Option<toml::Table>, String> {
+    use pathlight_render::preset::Preset;
+    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| e.to_string())?;
+    let Some(toml::Value::Array(list)) = table.get_mut("configuration") else {
+        return Ok(None);
+    };
+    let mut any = false;
+    for c in list.iter_mut() {
+        let Some(c) = c.as_table_mut() else { continue };
+        let name = c
+            .get("name")
+            .and_then(|n| n.as_str())
+            .unwrap_or("")
+            .to_owned();
+        let preset = match c.get("preset") {
+            None => continue,
+            Some(toml::Value::String(p)) => p.clone(),
+            Some(v) => return Err(format!("configuration {name}: preset = {v}: a string")),
+        };
+        any = true;
+        let own = match c.get("config") {
+            Some(toml::Value::Table(t)) => Some(t.clone()),
+            None => None,
+            Some(_) => return Err(format!("configuration {name}: config must be a table")),
+        };
+        if preset == AUTO {
+            if own.is_some() {
+                return Err(format!(
+                    "configuration {name}: preset = \"auto\" takes no config table (the rule's \
+                     preset is used as it is)"
+                ));
+            }
+            continue;
+        }
+        let Some(p) = Preset::named(&preset) else {
+            let mut names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
+            names.push(AUTO);
+            return Err(format!(
+                "configuration {name}: preset = \"{preset}\": one of {}",
+                names.join(", ")
+            ));
+        };
+        let base = p.config(&Config::default());
+        let merged = match own {
+            Some(t) => base.with_toml(&t.to_string()),
+            None => Ok(base),
+        }
+        .map_err(|e| format!("configuration {name}: {e}"))?;
+        let merged = toml::Table::try_from(&merged).map_err(|e| e.to_string())?;
+        c.insert("config".into(), toml::Value::Table(merged));
+    }
+    Ok(any.then_some(table))
 }
 
 /// A spec that cannot be used, naming the file.
@@ -237,7 +315,12 @@ impl Spec {
 
     /// Parses and checks a spec's text (each of its `[[scenes]]` entries too).
     pub fn parse(text: &str) -> Result<Self, String> {
-        let spec: Spec = toml::from_str(text).map_err(|e| e.to_string())?;
+        let spec: Spec = match resolve_presets(text)? {
+            None => toml::from_str(text).map_err(|e| e.to_string())?,
+            Some(table) => table
+                .try_into()
+                .map_err(|e: toml::de::Error| e.to_string())?,
+        };
         if spec.scenes.is_empty() {
             spec.validate()?;
         } else {
@@ -524,6 +607,41 @@ mod tests {
             let e = Spec::parse(&format!("{base}{entries}")).unwrap_err();
             assert!(e.contains(expect), "{e}");
         }
+    }
+
+    /// A configuration's `preset` is its base, its `config` table applied over it; `"auto"`
+    /// is left to each scene's lights and takes no table; other names are refused.
+    #[test]
+    fn a_configuration_starts_from_its_preset() {
+        let spec = |tail: &str| {
+            Spec::parse(&format!(
+                "name = \"p\"\nwidth = 8\nheight = 8\n[budget]\nspp = [1]\n{tail}"
+            ))
+        };
+        let s = spec(
+            "[[configuration]]\nname = \"sun\"\npreset = \"realtime-sun\"\n\
+             [configuration.config.frame.texture_cache]\nlod_bias = 3.0\n",
+        )
+        .unwrap();
+        let c = &s.configurations[0].config;
+        let sun = pathlight_render::preset::Preset::Sun.config(&Config::default());
+        assert!(c.frame.texture_cache.enabled);
+        assert_eq!(c.frame.texture_cache.lod_bias, 3.0);
+        assert_eq!(c.frame.filter, sun.frame.filter);
+        let auto = spec("[[configuration]]\nname = \"d\"\npreset = \"auto\"\n").unwrap();
+        let lights = pathlight_render::light::Lights::new(
+            &pathlight_scene::cornell::cornell_box(),
+            Default::default(),
+        );
+        assert_eq!(auto.configurations[0].config_for(&lights), sun);
+        let e = spec(
+            "[[configuration]]\nname = \"d\"\npreset = \"auto\"\n\
+             [configuration.config]\nspp = 2\n",
+        )
+        .unwrap_err();
+        assert!(e.contains("takes no config"), "{e}");
+        let e = spec("[[configuration]]\nname = \"x\"\npreset = \"sunny\"\n").unwrap_err();
+        assert!(e.contains("sunny") && e.contains("realtime-sun"), "{e}");
     }
 
     #[test]
