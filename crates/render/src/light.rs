@@ -475,6 +475,11 @@ impl Lights {
         self.emitters.len() + self.punctual.len()
     }
 
+    /// The punctual lights (point, spot, directional).
+    pub fn punctual_lights(&self) -> usize {
+        self.punctual.len()
+    }
+
     /// Whether an environment map lights the scene.
     pub fn has_environment(&self) -> bool {
         self.environment.is_some()

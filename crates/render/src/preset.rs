@@ -2,24 +2,34 @@
 //! that chooses one from the scene's lights when the user gives no configuration (`view`,
 //! `play` and `bench frame` without `--config` or `--plain`).
 //!
-//! The rule, from the presets measured along short camera moves on four scenes (320x180, two
-//! bounces, relMSE against converged references at each preset's median frame time, issue 60,
-//! 2026-12-07):
+//! The rule, set from the presets measured along camera moves (320x180, two bounces, relMSE
+//! against converged references at each preset's median frame time):
 //! - **no light** (nothing emits and no environment): the plain pipeline, since every
 //!   technique would be spent on a black image;
 //! - **many sources and no environment** (at least [`MANY_SOURCES`] emissive materials and
 //!   punctual lights): the SVGF preset (`realtime.toml`): on the interior lit by 500 point
-//!   lights it gave 0.246 at 74 ms, where the cache's preset gave 0.956 at 68 ms (its cells'
-//!   next event estimation over hundreds of lights is noise the cache then keeps) and
-//!   ReSTIR's 0.211 at 106 ms (better error, but not per millisecond);
-//! - **otherwise** (a sky, a sun, a studio environment, a few lamps): the texture cache's
-//!   preset (`realtime-sun.toml`): the best on the Cornell box (0.122 at 33 ms against SVGF's
-//!   0.165 at 33), the garden under its sky (0.138 at 40 against 0.363 at 31) and the helmet
-//!   in its studio (0.192 at 48 against 14.6 at 37, where SVGF smeared the visor's highlight).
+//!   lights (issue 60's table) 0.246 at 74 ms, where the cache's preset gave 0.956 at 68 ms
+//!   (its cells' next event estimation over hundreds of lights is noise the cache then keeps)
+//!   and ReSTIR's 0.211 at 106 ms; along `experiments/060-defaults.toml`'s pan 0.967 at 65 ms
+//!   against the cache's 33.9 and ReSTIR's 2.41 at 119;
+//! - **a few point lights and nothing else** (no environment, no emissive surface): the
+//!   many-lights preset (`realtime-many-lights.toml`, SVGF with ReSTIR DI): along the pan the
+//!   city diorama (lit by the 16 point lights the loader adds to an unlit scene) gave 0.128 at
+//!   30 ms against SVGF's 0.157 at 28 and the cache's 1.1 at 36 (point lights close to the
+//!   surfaces light a cell's corners unevenly, and the filter spreads it), the hotel room
+//!   (the same 16 lights) 0.0078 at 22 against the cache's 0.0075 at 17;
+//! - **otherwise** (a sky, a sun, a studio environment, a few lamps that are surfaces): the
+//!   texture cache's preset (`realtime-sun.toml`): the best on the Cornell box (issue 60's
+//!   table: 0.122 at 33 ms against SVGF's 0.165 at 33), the garden under its sky (0.138 at 40
+//!   against 0.363 at 31) and the helmet in its studio (0.192 at 48 against 14.6 at 37, where
+//!   SVGF smeared the visor's highlight), and along the pan on those three and the interior
+//!   under its sky.
 //!
-//! Facts not used yet (the issue's other candidates): how much of the view is glossy,
-//! metallic or textured. The threshold between "a few" and "many" sources is not measured
-//! between 1 and 500; 64 is a choice.
+//! The pan set the point-lights case; `experiments/060-defaults-orbit.toml` reports the rule
+//! on another move (BENCHMARKS.md, "Real time by default (issue 60)"). Facts not used yet (the
+//! issue's other candidates): how much of the view is glossy, metallic or textured. The
+//! threshold between "a few" and "many" sources is not measured between 16 and 500; 64 is a
+//! choice.
 
 use crate::config::Config;
 use crate::light::Lights;
@@ -34,7 +44,8 @@ pub enum Preset {
     Plain,
     /// SVGF with accumulation and its still handover (`experiments/realtime.toml`).
     Realtime,
-    /// The real-time preset with ReSTIR DI (`experiments/realtime-many-lights.toml`).
+    /// The real-time preset with ReSTIR DI (`experiments/realtime-many-lights.toml`): scenes
+    /// lit by a few point lights alone.
     ManyLights,
     /// The texture-space shading cache, its sun apart, under TAA
     /// (`experiments/realtime-sun.toml`).
@@ -70,7 +81,7 @@ impl Preset {
         match self {
             Self::Plain => "the plain path tracer: one noisy sample a frame, no technique",
             Self::Realtime => "SVGF for a moving camera at 30 fps (scenes lit by many lamps)",
-            Self::ManyLights => "the real-time preset with ReSTIR DI, for hundreds of lights",
+            Self::ManyLights => "SVGF with ReSTIR DI (scenes lit by a few point lights alone)",
             Self::Sun => "the texture-space cache (skies, suns, studios and a few lamps)",
         }
     }
@@ -113,6 +124,7 @@ fn sources_text(n: usize) -> String {
 /// The rule (module docs): the preset for a scene lit by `lights`.
 pub fn choose(lights: &Lights) -> Choice {
     let (sources, environment) = (lights.sources(), lights.has_environment());
+    let only_points = !environment && lights.punctual_lights() == sources;
     let (preset, reason) = if sources == 0 && !environment {
         (
             Preset::Plain,
@@ -123,6 +135,14 @@ pub fn choose(lights: &Lights) -> Choice {
             Preset::Realtime,
             format!(
                 "{} and no environment (many: at least {MANY_SOURCES})",
+                sources_text(sources)
+            ),
+        )
+    } else if only_points {
+        (
+            Preset::ManyLights,
+            format!(
+                "{} and nothing else: point lights alone (few: under {MANY_SOURCES})",
                 sources_text(sources)
             ),
         )
@@ -198,6 +218,11 @@ mod tests {
         assert_eq!(chosen(&scene(0, 0, None)), Preset::Plain, "no light");
         assert_eq!(chosen(&scene(0, 1, None)), Preset::Sun, "a lamp");
         assert_eq!(chosen(&scene(2, 3, None)), Preset::Sun, "a few lamps");
+        assert_eq!(
+            chosen(&scene(16, 0, None)),
+            Preset::ManyLights,
+            "points alone"
+        );
         assert_eq!(chosen(&scene(500, 0, None)), Preset::Realtime, "500 points");
         let sky = Some(sky_and_sun());
         assert_eq!(
@@ -212,11 +237,21 @@ mod tests {
         );
         let n = MANY_SOURCES;
         assert_eq!(
-            chosen(&scene(n - 1, 0, None)),
+            chosen(&scene(n - 2, 1, None)),
             Preset::Sun,
-            "just under many"
+            "under many, a lamp"
         );
-        assert_eq!(chosen(&scene(n - 1, 1, None)), Preset::Realtime, "many");
+        assert_eq!(
+            chosen(&scene(n - 1, 1, None)),
+            Preset::Realtime,
+            "many, a lamp"
+        );
+        assert_eq!(
+            chosen(&scene(n - 1, 0, None)),
+            Preset::ManyLights,
+            "under many"
+        );
+        assert_eq!(chosen(&scene(n, 0, None)), Preset::Realtime, "many points");
         let reason = choose(&Lights::new(&scene(500, 0, None), Default::default())).reason;
         assert!(reason.contains("500 light sources"), "{reason}");
     }
