@@ -1,11 +1,15 @@
 """Summarises `pathlight eval experiments/060-defaults.toml --out DIR` as BENCHMARKS' table.
 
-    python3 benchmarks/realtime/defaults.py DIR
+    python3 benchmarks/realtime/defaults.py DIR [--chosen SCENE=PRESET,...]
 
 Per scene and configuration, over the views after the first (the camera moving; the first
 frame is the cold one): mean relMSE, mean flicker and median frame time (ms); the best preset
 is the one with the lowest relMSE x ms (the issue's "best relMSE x ms"); then the defaults'
 relMSE and flicker over the best preset's, and over the lowest of any preset.
+
+`--chosen` takes the defaults' row from a preset's instead of the `defaults` configuration's,
+for results made before the rule last changed: a preset's configuration renders the same
+frames as `preset = "auto"` choosing it (same seed, same settings).
 """
 
 import json
@@ -38,6 +42,9 @@ def summary(results):
 
 def main():
     out = Path(sys.argv[1])
+    chosen_by = {}
+    if len(sys.argv) > 3 and sys.argv[2] == "--chosen":
+        chosen_by = dict(kv.split("=") for kv in sys.argv[3].split(","))
     print("| scene | defaults (chosen) | realtime | realtime-many-lights | realtime-sun "
           "| defaults / best relMSE x ms preset: relMSE, flicker "
           "| defaults / any preset's lowest: relMSE, flicker |")
@@ -47,6 +54,9 @@ def main():
         s = summary(results)
         if "defaults" not in s:
             continue
+        scene = results_file.parent.name
+        if scene in chosen_by:
+            s["defaults"] = s[chosen_by[scene]]
         d = s["defaults"]
         chosen = next(
             (p for p in PRESETS if p in s and s[p]["relmse"] == d["relmse"]), "plain?"
@@ -61,7 +71,7 @@ def main():
             return f"{mark}{x['relmse']:.3g} @ {x['ms']:.0f}{mark} (fl. {x['flicker']:.3g})"
 
         print(
-            f"| {results_file.parent.name} | {d['relmse']:.3g} @ {d['ms']:.0f} ({chosen}) | "
+            f"| {scene} | {d['relmse']:.3g} @ {d['ms']:.0f} ({chosen}) | "
             + " | ".join(cell(p) if p in s else "" for p in PRESETS)
             + f" | {d['relmse'] / s[best]['relmse']:.2f}x, "
             f"{d['flicker'] / s[best]['flicker']:.2f}x | {d['relmse'] / lowest:.2f}x, "
