@@ -11,10 +11,15 @@
 # Run from the repository's root after `cargo build --release`:
 #   sh benchmarks/realtime/goals.sh                       # this build alone
 #   OLD=/path/to/old/pathlight sh benchmarks/realtime/goals.sh
-# REPS (default 3) and FRAMES (default 40, play's frames) choose the effort.
+# REPS (default 3) and FRAMES (default 40, play's frames) choose the effort; ONLY (a pattern
+# over the names) the configurations. An OLD build from
+# before the filter's settings moved into per-method tables (912ec0e) cannot read today's
+# presets: give it its own with OLD_EXPERIMENTS=DIR (e.g. `git archive 70c60e8 experiments |
+# tar -x -C /tmp/old`, then OLD_EXPERIMENTS=/tmp/old/experiments).
 set -e
 NEW=./target/release/pathlight
 OLD=${OLD:-}
+OLD_EXPERIMENTS=${OLD_EXPERIMENTS:-}
 REPS=${REPS:-3}
 FRAMES=${FRAMES:-40}
 S=../shared/scenes
@@ -42,6 +47,10 @@ plain() { # build name
 frame() { # build name threads args...
   b=$1; n=$2; t=$3; shift 3
   set -- "$@" $(plain "$b" "$n")
+  if [ "$b" = "$OLD" ] && [ -n "$OLD_EXPERIMENTS" ]; then
+    # shellcheck disable=SC2046
+    set -- $(printf '%s\n' "$@" | sed "s|^experiments/|$OLD_EXPERIMENTS/|")
+  fi
   # (A build older than the floor measures no floor: its fields are then empty.)
   $b bench frame "$@" --threads "$t" --frames 60 --json 2>/dev/null | tail -1 |
     python3 -c "import json,sys; d=json.loads(sys.stdin.read()); \
@@ -61,7 +70,7 @@ d.get('first_over_median') and round(d['first_over_median'], 2), 'worst later/me
 d.get('worst_later_over_median') and round(d['worst_later_over_median'], 2))"
 }
 
-configs | while IFS='|' read -r name threads args; do
+configs | grep -E "^(${ONLY:-.})" | while IFS='|' read -r name threads args; do
   for r in $(seq "$REPS"); do
     # shellcheck disable=SC2086
     [ -n "$OLD" ] && frame "$OLD" "$name" "$threads" $args
