@@ -318,7 +318,7 @@ fn read_config(path: &std::path::Path) -> Result<(Option<String>, String)> {
         Some(v) => bail!(
             "{}: preset = {v}: must be a string, one of {}",
             path.display(),
-            preset_names()
+            preset::names()
         ),
     }
 }
@@ -332,13 +332,6 @@ pub fn choice_json(choice: &Option<Choice>) -> serde_json::Value {
     )
 }
 
-/// The names `preset` takes.
-fn preset_names() -> String {
-    let mut names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
-    names.push("auto");
-    names.join(", ")
-}
-
 impl ConfigArgs {
     /// The frame commands' configuration for a scene lit by `lights`: with neither --config,
     /// --plain nor a technique's flag ([`technique_flags`](Self::technique_flags)), or with a
@@ -348,34 +341,36 @@ impl ConfigArgs {
     /// leave the light selection as it is, so `lights` stay those of the configuration.
     /// Checked ([`check_realtime`]); the choice is printed with its reason.
     pub fn for_scene(&self, lights: &Lights) -> Result<(Config, Option<Choice>)> {
-        let named = match &self.config {
-            Some(path) => read_config(path)?.0,
+        let file = match &self.config {
+            Some(path) => Some(read_config(path)?),
             None => None,
         };
+        let named = file.as_ref().and_then(|(name, _)| name.as_deref());
         let auto = !self.plain
-            && match &named {
+            && match named {
                 None => self.config.is_none() && self.technique_flags().is_empty(),
-                Some(name) => name == "auto",
+                Some(name) => name == preset::AUTO,
             };
         let (base, choice) = if auto {
             let choice = preset::choose(lights);
             (choice.preset.config(&Config::realtime()), Some(choice))
         } else {
-            let preset = match named.as_deref() {
-                None | Some("plain") => Preset::Plain,
+            let preset = match named {
+                None => Preset::Plain,
                 Some(name) => Preset::named(name).with_context(|| {
                     format!(
                         "{}: preset = \"{name}\": must be one of {}",
                         self.config
                             .as_ref()
                             .map_or("".into(), |p| p.display().to_string()),
-                        preset_names()
+                        preset::names()
                     )
                 })?,
             };
             (preset.config(&Config::realtime()), None)
         };
-        let config = self.apply(base)?;
+        let text = file.as_ref().map(|(_, text)| text.as_str());
+        let config = self.apply_text(base, text)?;
         check_realtime(&config)?;
         if let Some(c) = &choice {
             eprintln!(
@@ -391,13 +386,21 @@ impl ConfigArgs {
     /// the caller may still fill in values (e.g. the height from the camera's aspect ratio)
     /// before [`check`].
     pub fn apply(&self, base: Config) -> Result<Config> {
-        let mut c = match &self.config {
-            Some(path) => {
-                let (_, text) = read_config(path)?;
-                base.with_toml(&text)
-                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
-            }
-            None => base,
+        let file = match &self.config {
+            Some(path) => Some(read_config(path)?.1),
+            None => None,
+        };
+        self.apply_text(base, file.as_deref())
+    }
+
+    /// [`apply`](Self::apply) with the `--config` file's text (its `preset` key taken out)
+    /// already read.
+    fn apply_text(&self, base: Config, file: Option<&str>) -> Result<Config> {
+        let mut c = match (file, &self.config) {
+            (Some(text), Some(path)) => base
+                .with_toml(text)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+            _ => base,
         };
         if let Some(v) = self.width {
             c.width = v;

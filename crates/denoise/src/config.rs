@@ -385,7 +385,7 @@ pub const MOVED: [(&str, &str); 35] = [
 ];
 
 /// `[frame.filter]` as a file writes it: the tables, and any old flat key (refused).
-#[derive(Deserialize)]
+#[derive(Default, Deserialize)]
 #[serde(default)]
 struct FilterFile {
     method: Method,
@@ -395,20 +395,6 @@ struct FilterFile {
     rpf: crate::rpf::RpfParams,
     #[serde(flatten)]
     moved: std::collections::BTreeMap<String, serde::de::IgnoredAny>,
-}
-
-impl Default for FilterFile {
-    fn default() -> Self {
-        let c = FilterConfig::default();
-        Self {
-            method: c.method,
-            data_driven: c.data_driven,
-            svgf: c.svgf,
-            taa: c.taa,
-            rpf: c.rpf,
-            moved: Default::default(),
-        }
-    }
 }
 
 impl TryFrom<FilterFile> for FilterConfig {

@@ -215,8 +215,7 @@ pub struct Configuration {
     pub preset: Option<String>,
 }
 
-/// The value of `preset` that lets the rule choose per scene.
-pub const AUTO: &str = "auto";
+pub use pathlight_render::preset::AUTO;
 
 impl Configuration {
     /// Its settings for a scene lit by `lights`: `config`, or with `preset = "auto"` the
@@ -268,11 +267,9 @@ fn resolve_presets(text: &str) -> Result<Option<toml::Table>, String> {
             continue;
         }
         let Some(p) = Preset::named(&preset) else {
-            let mut names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
-            names.push(AUTO);
             return Err(format!(
                 "configuration {name}: preset = \"{preset}\": one of {}",
-                names.join(", ")
+                pathlight_render::preset::names()
             ));
         };
         let base = p.config(&Config::default());

@@ -34,6 +34,17 @@
 use crate::config::Config;
 use crate::light::Lights;
 
+/// The `preset` value (a configuration file's, an eval configuration's) that lets the rule
+/// choose.
+pub const AUTO: &str = "auto";
+
+/// Every name `preset` takes: the presets' and [`AUTO`].
+pub fn names() -> String {
+    let mut names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
+    names.push(AUTO);
+    names.join(", ")
+}
+
 /// Light sources (besides an environment) from which a scene counts as lit by many.
 pub const MANY_SOURCES: usize = 64;
 
@@ -163,7 +174,7 @@ mod tests {
     use pathlight_scene::{Environment, PunctualKind, PunctualLight, Scene};
 
     use super::*;
-    use crate::light::tests::{emissive_material, instance, mesh};
+    use crate::light::tests::{emissive_material, instance, mesh, sunny};
 
     /// A scene lit by `points` point lights, `lamps` emissive quads (each its own material)
     /// and `environment`.
@@ -195,19 +206,6 @@ mod tests {
         s
     }
 
-    /// A sky of 32x16 texels with a sun of three bright texels.
-    fn sky_and_sun() -> Environment {
-        let (w, h) = (32, 16);
-        let mut env = Environment::constant(Vec3::splat(0.5));
-        env.width = w;
-        env.height = h;
-        env.texels = vec![Vec3::new(0.4, 0.5, 0.7); (w * h) as usize];
-        for (x, y) in [(10, 4), (11, 4), (10, 5)] {
-            env.texels[(y * w + x) as usize] = Vec3::splat(20_000.0);
-        }
-        env
-    }
-
     fn chosen(s: &Scene) -> Preset {
         choose(&Lights::new(s, Default::default())).preset
     }
@@ -224,7 +222,7 @@ mod tests {
             "points alone"
         );
         assert_eq!(chosen(&scene(500, 0, None)), Preset::Realtime, "500 points");
-        let sky = Some(sky_and_sun());
+        let sky = Some(sunny(32, 16));
         assert_eq!(
             chosen(&scene(0, 0, sky.clone())),
             Preset::Sun,

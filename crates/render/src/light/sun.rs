@@ -214,20 +214,9 @@ impl SunAndSky {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::light::tests::sunny;
     use crate::light::LightSelection;
     use pathlight_scene::{Environment, Scene};
-
-    /// A blue sky with a sun of 20,000 in three texels.
-    fn sunny(w: u32, h: u32) -> Environment {
-        let mut env = Environment::constant(Vec3::splat(0.5));
-        env.width = w;
-        env.height = h;
-        env.texels = vec![Vec3::new(0.4, 0.5, 0.7); (w * h) as usize];
-        for (x, y) in [(10, 8), (11, 8), (10, 9)] {
-            env.texels[(y * w + x) as usize] = Vec3::splat(20_000.0);
-        }
-        env
-    }
 
     fn lights_of(env: Environment) -> Lights {
         let scene = Scene {

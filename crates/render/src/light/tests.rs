@@ -30,6 +30,18 @@ pub(crate) fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32) 
     }
 }
 
+/// A blue sky of `w` x `h` texels with a sun of 20,000 in three texels.
+pub(crate) fn sunny(w: u32, h: u32) -> Environment {
+    let mut env = Environment::constant(Vec3::splat(0.5));
+    env.width = w;
+    env.height = h;
+    env.texels = vec![Vec3::new(0.4, 0.5, 0.7); (w * h) as usize];
+    for (x, y) in [(10, 8), (11, 8), (10, 9)] {
+        env.texels[(y * w + x) as usize] = Vec3::splat(20_000.0);
+    }
+    env
+}
+
 pub(crate) fn instance(mesh: u32, transform: Mat4) -> Instance {
     Instance {
         mesh,
