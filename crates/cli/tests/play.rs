@@ -42,6 +42,12 @@ fn play_is_deterministic_for_a_fixed_seed() {
     let p = dir.join("p");
     play(&p, &["--seed", "3", "--plain"]);
     assert_ne!(frames(&p), fa, "--plain changes nothing");
+    // ... and the plain pipeline's frames, bit for bit those of a configuration file that
+    // sets nothing (the frame commands' configuration before the rule chose presets).
+    let (empty, q) = (dir.join("empty.toml"), dir.join("q"));
+    std::fs::write(&empty, "").unwrap();
+    play(&q, &["--seed", "3", "--config", s(&empty)]);
+    assert_eq!(frames(&p), frames(&q), "--plain is not the plain pipeline");
 
     // Timings per frame and per pass.
     let json: serde_json::Value =
