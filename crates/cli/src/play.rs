@@ -283,7 +283,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
         };
         pipeline.set_config(&with_view(&camera));
         // The right eye: the same instant as the left.
-        pipeline.texture_cache.same_instant = matches!(eye, Some(("right", _)));
+        pipeline.stages.texture_cache.same_instant = matches!(eye, Some(("right", _)));
         let mut report = pool.install(|| pipeline.render_frame(&world));
         pool.install(|| pipeline.display(&mut report));
         if let (Some(t), Some((name, _))) = (&report.texture_cache, eye) {

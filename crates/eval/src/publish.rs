@@ -389,7 +389,7 @@ fn stages(results: &Results, out: &Path) -> Result<Section, EvalError> {
         }
         // Bottom to top in the order a frame runs its passes.
         let order = |name: &str| {
-            pathlight_render::frame::PASSES
+            pathlight_render::frame::passes()
                 .iter()
                 .position(|p| *p == name)
                 .unwrap_or(usize::MAX)

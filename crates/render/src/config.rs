@@ -14,7 +14,7 @@ use crate::light::LightSelection;
 use crate::path::PathSettings;
 use crate::sampler::SamplerKind;
 use crate::world::World;
-use pathlight_denoise::{FilterConfig, FilterError};
+use pathlight_denoise::FilterConfig;
 
 pub use crate::camera::CameraConfig;
 pub use crate::error::ConfigError;
@@ -47,42 +47,56 @@ pub struct Config {
     pub display: DisplayConfig,
 }
 
-/// The passes of the real-time frame pipeline ([`crate::frame`]) and their parameters. A
-/// frame traces `spp` samples per pixel (the first through the G-buffer), then accumulates
-/// them with the earlier frames while nothing changes. Each technique's settings are its own
-/// module's type, gathered here by field.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct FrameConfig {
-    /// Progressive accumulation: average the frames while the camera and the settings stay
-    /// the same; any change starts afresh. Off: every frame stands alone.
-    pub accumulate: bool,
-    /// Accumulation stops adding samples after this many frames (0: never).
-    pub max_frames: u32,
-    /// Seed 000's adaptive sampling.
-    pub adaptive: AdaptiveConfig,
-    /// Seed 000's forward reprojection (with `adaptive`: their combination).
-    pub reprojection: ReprojectionConfig,
-    /// Seed 004's ReSTIR direct illumination at the first hit.
-    pub restir: RestirConfig,
-    /// Seed 001's reconstruction filter of the accumulated image.
-    pub filter: FilterConfig,
-    /// Seed 002's texture-space shading cache.
-    pub texture_cache: TextureCacheConfig,
+/// Makes [`FrameConfig`]: accumulation's two settings, then each stage's settings (its own
+/// module's type, checked by its `validate()`) by field, with their defaults and their check.
+macro_rules! frame_config {
+    ($($(#[$doc:meta])* $field:ident: $settings:ty,)*) => {
+        /// The passes of the real-time frame pipeline ([`crate::frame`]) and their parameters.
+        /// A frame traces `spp` samples per pixel (the first through the G-buffer), then
+        /// accumulates them with the earlier frames while nothing changes. Each technique's
+        /// settings are its own module's type, gathered here by field.
+        #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+        #[serde(default, deny_unknown_fields)]
+        pub struct FrameConfig {
+            /// Progressive accumulation: average the frames while the camera and the settings
+            /// stay the same; any change starts afresh. Off: every frame stands alone.
+            pub accumulate: bool,
+            /// Accumulation stops adding samples after this many frames (0: never).
+            pub max_frames: u32,
+            $($(#[$doc])* pub $field: $settings,)*
+        }
+
+        impl Default for FrameConfig {
+            fn default() -> Self {
+                Self {
+                    accumulate: true,
+                    max_frames: 0,
+                    $($field: Default::default(),)*
+                }
+            }
+        }
+
+        impl FrameConfig {
+            /// Checks each stage's settings.
+            fn validate_stages(&self) -> Result<(), ConfigError> {
+                $(self.$field.validate()?;)*
+                Ok(())
+            }
+        }
+    };
 }
 
-impl Default for FrameConfig {
-    fn default() -> Self {
-        Self {
-            accumulate: true,
-            max_frames: 0,
-            adaptive: AdaptiveConfig::default(),
-            reprojection: ReprojectionConfig::default(),
-            restir: RestirConfig::default(),
-            filter: FilterConfig::default(),
-            texture_cache: TextureCacheConfig::default(),
-        }
-    }
+frame_config! {
+    /// Seed 000's adaptive sampling.
+    adaptive: AdaptiveConfig,
+    /// Seed 000's forward reprojection (with `adaptive`: their combination).
+    reprojection: ReprojectionConfig,
+    /// Seed 004's ReSTIR direct illumination at the first hit.
+    restir: RestirConfig,
+    /// Seed 001's reconstruction filter of the accumulated image.
+    filter: FilterConfig,
+    /// Seed 002's texture-space shading cache.
+    texture_cache: TextureCacheConfig,
 }
 
 /// Largest image side accepted.
@@ -271,26 +285,7 @@ impl Config {
                 ));
             }
         }
-        self.frame.adaptive.validate()?;
-        self.frame.reprojection.validate()?;
-        self.frame.restir.validate()?;
-        self.frame.texture_cache.validate()?;
-        self.frame.filter.validate().map_err(|e| match e {
-            FilterError::Parameter {
-                field,
-                value,
-                requirement,
-            } => ConfigError {
-                field,
-                value,
-                requirement,
-            },
-            other => ConfigError {
-                field: "frame.filter",
-                value: String::new(),
-                requirement: other.to_string(),
-            },
-        })?;
+        self.frame.validate_stages()?;
         Ok(())
     }
 }

@@ -36,3 +36,21 @@ impl ConfigError {
         }
     }
 }
+
+/// The reconstruction filter's settings out of range, as the configuration's error.
+impl From<pathlight_denoise::FilterError> for ConfigError {
+    fn from(e: pathlight_denoise::FilterError) -> Self {
+        match e {
+            pathlight_denoise::FilterError::Parameter {
+                field,
+                value,
+                requirement,
+            } => Self {
+                field,
+                value,
+                requirement,
+            },
+            other => Self::new("frame.filter", "", other.to_string()),
+        }
+    }
+}

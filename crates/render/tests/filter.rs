@@ -171,8 +171,8 @@ fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
         "relMSE {after:.3e} blended, {before:.3e} without, {unfiltered:.3e} unfiltered"
     );
     let n = 64 * 48;
-    assert!(blurred.filter.shares().is_empty());
-    assert_eq!(blended.filter.shares().len(), n);
+    assert!(blurred.stages.filter.shares().is_empty());
+    assert_eq!(blended.stages.filter.shares().len(), n);
     let mut valid = 0;
     for i in 0..n {
         let v = blended.value(&DisplayMode::named("sure-share"), i);
@@ -191,7 +191,7 @@ fn the_sure_blend_brings_an_overblurred_image_back_toward_the_reference() {
     off.frame.filter.method = Method::None;
     p.set_config(&off);
     p.render_frame(&world);
-    assert!(p.filter.shares().is_empty());
+    assert!(p.stages.filter.shares().is_empty());
     assert_eq!(
         p.value(&DisplayMode::named("sure-share"), 0),
         glam::Vec3::splat(-1.0)
@@ -406,7 +406,7 @@ fn between_refreshes_a_pixel_keeps_its_own_light_fresh() {
     for frame in 1..=11u32 {
         p.render_frame(&world);
         if [1, 2, 3, 4, 5, 7, 9].contains(&frame) {
-            (last, shares, then) = (p.image(), p.filter.shares().to_vec(), light(&p));
+            (last, shares, then) = (p.image(), p.stages.filter.shares().to_vec(), light(&p));
             continue;
         }
         let (direct, indirect) = light(&p);

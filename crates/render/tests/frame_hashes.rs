@@ -223,7 +223,7 @@ fn sequence(
     };
     let mut pipeline = Pipeline::new(at(&views[0]));
     if let Some(lanes) = lanes {
-        pipeline.filter.set_lanes(lanes);
+        pipeline.stages.filter.set_lanes(lanes);
     }
     let mut hashes = Vec::new();
     let mut report = None;

@@ -328,7 +328,10 @@ fn skipping_empty_iterations_keeps_the_schedules_decisions() {
     let nonempty: Vec<u64> = all.iter().copied().filter(|&n| n > 0).collect();
     assert_eq!(busy, nonempty);
     assert_eq!(skipped.frame.history, plain.frame.history);
-    assert_eq!(skipped.adaptive.probability, plain.adaptive.probability);
+    assert_eq!(
+        skipped.stages.adaptive.probability,
+        plain.stages.adaptive.probability
+    );
 }
 
 /// Adaptive sampling's `budget`: every frame traces about a uniform frame's samples. During
@@ -357,16 +360,16 @@ fn budget_frames_trace_a_uniform_frames_samples() {
     let pixels = 40 * 30;
     let mut pipeline = Pipeline::new(cfg);
     let mut schedule_frames = 0;
-    while pipeline.adaptive.iteration < 32 {
-        let before = pipeline.adaptive.iteration;
+    while pipeline.stages.adaptive.iteration < 32 {
+        let before = pipeline.stages.adaptive.iteration;
         let r = pipeline.render_frame(&world);
-        let ran = pipeline.adaptive.iteration - before;
+        let ran = pipeline.stages.adaptive.iteration - before;
         assert!(ran >= 1);
         assert!(ran == 1 || r.samples <= pixels, "{} samples", r.samples);
         schedule_frames += 1;
     }
     assert!(schedule_frames < 32, "{schedule_frames} frames");
-    let p = pipeline.adaptive.probability.clone();
+    let p = pipeline.stages.adaptive.probability.clone();
     assert!(p.iter().all(|&p| (4.0 / 32.0..=1.0).contains(&p)));
     let start: Vec<u32> = pipeline.frame.history.iter().map(|h| h.n).collect();
     let frames = 40;
@@ -401,10 +404,27 @@ fn budget_frames_trace_a_uniform_frames_samples() {
 #[test]
 fn the_stages_views_are_the_listed_ones() {
     let pipeline = Pipeline::new(config());
-    let stages = pipeline.stages();
-    assert_eq!(stages.len(), views::STAGES.len());
-    for (stage, (name, listed)) in stages.iter().zip(views::STAGES) {
-        assert_eq!(stage.name(), name);
-        assert_eq!(stage.views(), listed);
+    let stages = pipeline.stages.all();
+    let listed = pathlight_render::frame::stages::views();
+    assert_eq!(stages.len(), listed.len());
+    for (stage, (name, views)) in stages.iter().zip(listed) {
+        assert_eq!(stage.name(), *name);
+        assert_eq!(stage.views(), *views);
+    }
+    // Every pass a frame reports is listed.
+    let mut config = config();
+    config.frame.restir.enabled = true;
+    config.frame.texture_cache.enabled = true;
+    config.frame.filter.method = pathlight_render::denoise::Method::Svgf;
+    let world = cornell();
+    let mut pipeline = Pipeline::new(config);
+    let mut report = pipeline.render_frame(&world);
+    pipeline.display(&mut report);
+    assert_eq!(report.passes.len(), 9, "{:?}", report.passes);
+    for pass in &report.passes {
+        assert!(
+            pathlight_render::frame::passes().contains(&pass.pass),
+            "{pass:?}"
+        );
     }
 }

@@ -62,8 +62,8 @@ fn reproject(
     let from = pipeline.camera().expect("warmed").clone();
     let camera = to.render_camera(world);
     let mut history = pipeline.frame.history.clone();
-    let mut probability = pipeline.adaptive.probability.clone();
-    let report = pipeline.reprojection.reproject(
+    let mut probability = pipeline.stages.adaptive.probability.clone();
+    let report = pipeline.stages.reprojection.reproject(
         world,
         &from,
         &camera,
@@ -111,6 +111,7 @@ fn pure_rotation_keeps_every_colour_exactly_and_has_no_view_error() {
         cfg.frame.reprojection.max_error = 0.0;
         let mut pipeline = warm(&world, &cfg, 6);
         let before: Vec<PixelStats> = pipeline
+            .stages
             .reprojection
             .slots
             .current
@@ -124,7 +125,7 @@ fn pure_rotation_keeps_every_colour_exactly_and_has_no_view_error() {
         assert!(report.kept > report.states * 3 / 4, "{report:?}");
         // Every kept state is one of the old states, unchanged.
         let mut kept = 0;
-        for s in &pipeline.reprojection.slots.current {
+        for s in &pipeline.stages.reprojection.slots.current {
             if s.stats.n > 0 {
                 assert!(
                     before.contains(&s.stats),
@@ -137,7 +138,10 @@ fn pure_rotation_keeps_every_colour_exactly_and_has_no_view_error() {
         assert_eq!(kept, report.kept);
         // A pixel's history is the merge of its states: with one state, the state itself.
         if samples == 1 {
-            for (h, s) in history.iter().zip(&pipeline.reprojection.slots.current) {
+            for (h, s) in history
+                .iter()
+                .zip(&pipeline.stages.reprojection.slots.current)
+            {
                 assert_eq!(*h, s.stats);
             }
         }
@@ -216,6 +220,7 @@ fn mirrors_glass_hidden_points_and_view_dependent_gloss_are_not_carried() {
         let cfg = with_view(&config(64, 48, samples), wall_view(0.0));
         let mut pipeline = warm(&world, &cfg, 4);
         let specular_states = pipeline
+            .stages
             .reprojection
             .slots
             .current
@@ -231,7 +236,7 @@ fn mirrors_glass_hidden_points_and_view_dependent_gloss_are_not_carried() {
         let to = with_view(&cfg, wall_view(1.0));
         let eye = to.render_camera(&world).position();
         let (_, report) = reproject(&mut pipeline, &world, &to);
-        let slots = &pipeline.reprojection.slots.current;
+        let slots = &pipeline.stages.reprojection.slots.current;
         assert!(
             report.specular > 0 && report.specular <= specular_states,
             "{report:?}"
@@ -415,7 +420,7 @@ fn fresh_spp_fills_the_holes_of_a_move_at_once() {
             // same frame too.
             assert!(n.iter().all(|&n| n >= 8), "{n:?}");
             let refused = (0..pixels)
-                .filter(|&p| pipeline.reprojection.fate(p) == Fate::Aliasing)
+                .filter(|&p| pipeline.stages.reprojection.fate(p) == Fate::Aliasing)
                 .count();
             assert!(refused > 0, "no state refused by the aliasing test");
             let taken: u64 = n.iter().map(|&n| if n <= 8 { n } else { 1 } as u64).sum();
@@ -530,7 +535,7 @@ fn switches_off_keep_the_plain_frames_bit_for_bit() {
             }
             images.push((
                 pipeline.frame.history.clone(),
-                pipeline.filter.image.clone(),
+                pipeline.stages.filter.image.clone(),
             ));
         }
         images
@@ -570,7 +575,7 @@ fn reprojected_frames_do_not_depend_on_the_thread_count() {
         (
             out,
             pipeline.frame.history.clone(),
-            pipeline.adaptive.probability.clone(),
+            pipeline.stages.adaptive.probability.clone(),
         )
     };
     let one = in_pool(1, run);

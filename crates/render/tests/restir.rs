@@ -178,7 +178,7 @@ fn restir_frames_report_their_passes_and_show_their_reservoirs() {
         );
         // Every lit pixel resampled its 4 candidates, plus what reuse brought (temporal
         // reuse from the second frame on).
-        let m = pipeline.restir.shaded().iter().map(|r| r.m);
+        let m = pipeline.stages.restir.shaded().iter().map(|r| r.m);
         let max = m.clone().fold(0.0, f32::max);
         assert!(m.filter(|&m| m > 0.0).all(|m| m >= 4.0));
         assert!(

@@ -53,7 +53,7 @@ fn run(
         let report = pipeline.render_frame(world);
         images.push(pipeline.image());
         reports.push(report.texture_cache.expect("the cache is on"));
-        blocks.push(pipeline.texture_cache.blocks_at_current_frame());
+        blocks.push(pipeline.stages.texture_cache.blocks_at_current_frame());
     }
     (images, reports, blocks)
 }
@@ -753,7 +753,7 @@ fn a_cold_cache_spreads_its_top_up_and_converges_to_the_same_image() {
                 .map(|_| {
                     pipeline.set_config(&c);
                     let report = pipeline.render_frame(&world).texture_cache.expect("on");
-                    let tc = &pipeline.texture_cache;
+                    let tc = &pipeline.stages.texture_cache;
                     let light: Vec<Vec3> = (0..48 * 48)
                         .map(|i| tc.value(&pipeline.frame, 0, i))
                         .collect();

@@ -13,7 +13,7 @@ use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
 use pathlight_render::frame::texture_cache::{
     ranges, CacheFilter, CachedTerms, LodMeasure, Temporal, MAX_KERNEL,
 };
-use pathlight_render::frame::views;
+use pathlight_render::frame::{stages, views};
 use pathlight_render::frame::{
     ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR, TEXTURE_CACHE,
 };
@@ -134,7 +134,7 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
 /// The display menu: every stage's views under its name, the frame's last stage (the final
 /// image) first.
 pub fn menu() -> impl Iterator<Item = (&'static str, &'static [View])> {
-    views::STAGES.iter().rev().copied()
+    stages::views().iter().rev().copied()
 }
 
 fn display(v: &mut Viewer, ui: &mut egui::Ui) {
@@ -722,7 +722,7 @@ mod tests {
     fn the_menu_lists_a_view_of_every_stage() {
         let pipeline = Pipeline::new(Config::default());
         let menu: Vec<(&str, &[View])> = menu().collect();
-        for stage in pipeline.stages() {
+        for stage in pipeline.stages.all() {
             let listed = menu
                 .iter()
                 .find(|(name, _)| *name == stage.name())
@@ -737,7 +737,7 @@ mod tests {
                 );
             }
         }
-        assert_eq!(menu.len(), pipeline.stages().len());
+        assert_eq!(menu.len(), pipeline.stages.all().len());
         for m in crate::NUMBER_MODES {
             assert!(views::find(m.name()).is_some(), "{m}");
         }

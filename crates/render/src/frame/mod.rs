@@ -62,12 +62,14 @@
 //! bit those of the plain pipeline (`tests/frame_hashes.rs` holds their hashes).
 //!
 //! Adding a stage: its module here (its settings with `validate()`, its state, passes, rules
-//! and views, `impl Stage`), its field in `FrameConfig`, and its line in the driver (with its
-//! entry in the driver's `stages()` and in [`views::STAGES`]). A stage that gives the light at
-//! the first hits implements [`trace::FirstHitLight`] on its frame's state (its passes in
-//! `prepare`, the pixels' direct light in `direct` or whole runs in `light_run`, its end of
-//! frame in `finish`), taking the light beneath it if it composes, and the driver puts it in
-//! the chain. Adding a view: its stage's file only.
+//! and views, `impl Stage`), and three lines elsewhere: its line in the list of stages
+//! ([`stages`], from which the pipeline's stages, its views, its passes' order and its rule at
+//! a new epoch come), its settings' line in the list that makes `FrameConfig` (its default and check come
+//! with it), and its pass's call in the driver.
+//! A stage that gives the light at the first hits implements [`trace::FirstHitLight`] on its
+//! frame's state (its passes in `prepare`, the pixels' direct light in `direct` or whole runs
+//! in `light_run`, its end of frame in `finish`), taking the light beneath it if it composes,
+//! and its call in the driver puts it in the chain. Adding a view: its stage's file only.
 //!
 //! Buffers live across frames and are reallocated only when the resolution changes.
 
@@ -84,6 +86,7 @@ pub mod plan;
 pub mod reprojection;
 pub mod restir;
 pub mod stage;
+pub mod stages;
 pub mod state;
 pub mod texture_cache;
 pub mod trace;
@@ -92,9 +95,10 @@ pub mod views;
 pub use display::DISPLAY;
 pub use filter::FILTER;
 pub use history::ACCUMULATE;
-pub use pipeline::{FrameReport, Pipeline, PASSES};
+pub use pipeline::{FrameReport, Pipeline};
 pub use reprojection::REPROJECT;
 pub use restir::{RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL};
+pub use stages::{passes, Stages};
 pub use state::PassTime;
 pub use texture_cache::TEXTURE_CACHE;
 pub use trace::{LIGHTING, PRIMARY};

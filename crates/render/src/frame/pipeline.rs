@@ -13,29 +13,14 @@ use crate::world::World;
 use super::accumulation::PixelStats;
 use super::adaptive::Adaptive;
 use super::display::{DisplayConfig, DisplayMode, DISPLAY};
-use super::filter::{Filter, FILTER};
 use super::history::{History, ACCUMULATE};
 use super::plan::{with_plan, FramePlan, Planned};
-use super::reprojection::{Reprojection, ReprojectionReport, REPROJECT};
-use super::restir::{Restir, RESTIR, RESTIR_SPATIAL, RESTIR_TEMPORAL};
+use super::reprojection::{Reprojection, ReprojectionReport};
 use super::stage::{view_index, Stage};
+use super::stages::Stages;
 use super::state::{Change, FrameState, PassTime, Times};
-use super::texture_cache::{CacheReport, TextureCache, TEXTURE_CACHE};
-use super::trace::{self, FirstHitLight, Lighting, NextEvent, Primary, Uniform, LIGHTING, PRIMARY};
-
-/// Every pass, in the order a frame runs them.
-pub const PASSES: [&str; 10] = [
-    REPROJECT,
-    PRIMARY,
-    RESTIR,
-    RESTIR_TEMPORAL,
-    RESTIR_SPATIAL,
-    TEXTURE_CACHE,
-    LIGHTING,
-    ACCUMULATE,
-    FILTER,
-    DISPLAY,
-];
+use super::texture_cache::CacheReport;
+use super::trace::{self, FirstHitLight, NextEvent, Uniform, LIGHTING};
 
 /// What one call of [`Pipeline::render_frame`] did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -99,16 +84,8 @@ pub struct Pipeline {
     pub frame: FrameState,
     /// The display pass's output: 8-bit RGBA, row-major.
     pub rgba: Vec<u8>,
-    /// Seed 000's forward reprojection.
-    pub reprojection: Reprojection,
-    /// Seed 000's adaptive sampling.
-    pub adaptive: Adaptive,
-    /// Seed 004's ReSTIR DI.
-    pub restir: Restir,
-    /// Seed 001's reconstruction filters.
-    pub filter: Filter,
-    /// Seed 002's texture-space shading cache.
-    pub texture_cache: TextureCache,
+    /// Each stage's own state, in the frame's order.
+    pub stages: Stages,
 }
 
 impl Pipeline {
@@ -160,7 +137,7 @@ impl Pipeline {
     pub fn prepare_world(&mut self, world: &World) {
         if self.config.frame.texture_cache.enabled {
             let microfacet = self.config.path_settings().microfacet;
-            self.texture_cache.prepare_world(world, microfacet);
+            self.stages.texture_cache.prepare_world(world, microfacet);
         }
     }
 
@@ -173,16 +150,7 @@ impl Pipeline {
         let change =
             (self.reset.take()).or((!self.config.frame.accumulate).then_some(Change::Repeat));
         let mut reprojected = change.and_then(|change| self.start_epoch(world, change));
-        let Self {
-            config,
-            frame: f,
-            reprojection,
-            adaptive,
-            restir,
-            filter,
-            texture_cache,
-            ..
-        } = self;
+        let (config, f, s) = (&self.config, &mut self.frame, &mut self.stages);
         let cfg = &config.frame;
         // Seed 000's techniques: each pixel continues its own sample count.
         let counts = cfg.adaptive.enabled || cfg.reprojection.enabled;
@@ -199,19 +167,21 @@ impl Pipeline {
                 camera: &camera,
                 settings: f.settings,
             };
-            filter.before_trace(&mut f.gbuffer, &mut f.lighting, !counts);
+            s.filter
+                .before_trace(&mut f.gbuffer, &mut f.lighting, !counts);
             // Seed 000: adaptive sampling's schedule, and the plan.
             let index = f.sample_index();
             let frame = (index, f.spp, f.gbuffer.width as usize, f.settings.seed);
             let (plan, above, end, threshold) =
-                plan(cfg, &f.history, frame, adaptive, reprojection);
+                plan(cfg, &f.history, frame, &mut s.adaptive, &s.reprojection);
             (above_one, tau) = (above, threshold);
             // Primary visibility, the light at the first hits (seeds 004 and 002), lighting.
             let (mut plain, mut cache) = (NextEvent, None);
-            let mut restir = cfg.restir.enabled.then(|| restir.frame(&cfg.restir, index));
+            let r = &cfg.restir;
+            let mut restir = r.enabled.then(|| s.restir.frame(r, index));
             let below: &mut dyn FirstHitLight = restir.as_mut().map_or(&mut plain as _, |r| r as _);
             let light = match tc.enabled {
-                true => cache.insert(texture_cache.begin(&tracer, tc, f.pixels(), below)) as _,
+                true => cache.insert(s.texture_cache.begin(&tracer, tc, f.pixels(), below)) as _,
                 false => below,
             };
             let previous = f.previous_camera.as_ref();
@@ -220,11 +190,11 @@ impl Pipeline {
             drop(cache);
             let ended = tc
                 .enabled
-                .then(|| texture_cache.end(&tracer, tc, &mut f.times, LIGHTING));
+                .then(|| s.texture_cache.end(&tracer, tc, &mut f.times, LIGHTING));
             (rays, cache_report) = (rays + ended.map_or(0, |e| e.0), ended.map(|e| e.1));
             // Seed 000: the samples reprojected pixels lack (`fresh_spp`).
             let t = Instant::now();
-            rays += reprojection.repair(&cfg.reprojection, f, &tracer);
+            rays += s.reprojection.repair(&cfg.reprojection, f, &tracer);
             f.times.since(LIGHTING, t);
             // Accumulation: into reprojection's states when it is on.
             let t = Instant::now();
@@ -233,21 +203,21 @@ impl Pipeline {
                 false => f.spp as u64 * f.pixels() as u64,
             };
             if cfg.reprojection.enabled {
-                let p = &mut adaptive.probability;
-                reprojection.accumulate_frame(world, &cfg.reprojection, f, p, reprojected.as_mut());
+                let (r, p) = (&cfg.reprojection, &mut s.adaptive.probability);
+                s.reprojection
+                    .accumulate_frame(world, r, f, p, reprojected.as_mut());
             } else {
                 History::accumulate(&mut f.history, &f.lighting, f.frames == 0);
             }
-            above_one = adaptive
-                .end_frame(&cfg.adaptive, &f.history, end)
-                .or(above_one);
+            let fixed = s.adaptive.end_frame(&cfg.adaptive, &f.history, end);
+            above_one = fixed.or(above_one);
             f.times.since(ACCUMULATE, t);
             f.frames += 1;
             f.previous_camera = Some(camera);
         }
         f.number += 1;
         // Seed 001's reconstruction filter.
-        filter.pass(&cfg.filter, f, traced, !counts);
+        s.filter.pass(&cfg.filter, f, traced, !counts);
         FrameReport {
             frame: f.number,
             epoch: f.epoch,
@@ -280,7 +250,8 @@ impl Pipeline {
             c.height,
         );
         let cfg = &c.frame;
-        let reprojected = self.reprojection.start_epoch(
+        let stages = &mut self.stages;
+        let reprojected = stages.reprojection.carry(
             world,
             &cfg.reprojection,
             cfg.accumulate,
@@ -288,37 +259,23 @@ impl Pipeline {
             resized,
             previous.as_ref(),
             f,
-            &mut self.adaptive.probability,
+            &mut stages.adaptive.probability,
         );
         // Seed 000's techniques read the history before the frame's accumulation: it is
         // cleared, unless reprojection carried it.
         let clear = (cfg.adaptive.enabled || cfg.reprojection.enabled) && reprojected.is_none();
-        self.adaptive.start_epoch(f.pixels(), clear);
+        stages.adaptive.restart(f.pixels(), clear);
         if clear {
             History::clear(&mut f.history);
         }
-        self.restir.start_epoch(change);
-        self.texture_cache.start_epoch(change);
+        stages.start_epoch(change);
         reprojected
-    }
-
-    /// The stages, in the frame's order (each with its views: [`super::views::STAGES`]).
-    pub fn stages(&self) -> [&dyn Stage; 8] {
-        [
-            &self.reprojection,
-            &self.adaptive,
-            &Primary,
-            &self.restir,
-            &self.texture_cache,
-            &Lighting,
-            &History,
-            &self.filter,
-        ]
     }
 
     /// The stage that has view `mode`, and the view's index among its views.
     fn view(&self, mode: &DisplayMode) -> Option<(&dyn Stage, usize)> {
-        self.stages()
+        self.stages
+            .all()
             .into_iter()
             .find_map(|s| Some((s, view_index(s.views(), mode.name())?)))
     }
@@ -373,7 +330,7 @@ impl Pipeline {
     pub fn bytes(&self) -> (usize, usize) {
         let plain = self.frame.bytes() + self.rgba.capacity();
         let techniques =
-            self.stages().iter().map(|s| s.bytes()).sum::<usize>() + self.frame.hits_bytes();
+            self.stages.all().iter().map(|s| s.bytes()).sum::<usize>() + self.frame.hits_bytes();
         (plain, techniques)
     }
 }

@@ -1,13 +1,15 @@
 //! What every stage of the frame has in common: a name, its views (the display modes it
-//! brings) and the memory it holds. Each stage's passes are its own methods, called in order by
-//! the driver ([`super::pipeline`]) with explicit inputs and outputs; this trait is what the
-//! display pass, the viewer's menu, `--display` and the memory report read of all of them.
+//! brings), its passes' names, its rule at a new epoch and the memory it holds. Each stage's
+//! passes are its own methods, called in order by the driver ([`super::pipeline`]) with
+//! explicit inputs and outputs; this trait is what the display pass, the viewer's menu,
+//! `--display`, the reports and the memory report read of all of them, and what the driver
+//! calls on all of them at a new epoch ([`super::stages`]).
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::display::{encode, DisplayConfig, View};
-use super::state::FrameState;
+use super::state::{Change, FrameState};
 
 /// A stage of the frame: a technique, or one of the plain pipeline's passes.
 pub trait Stage: Sync {
@@ -16,6 +18,18 @@ pub trait Stage: Sync {
 
     /// Its views, in menu order.
     fn views(&self) -> &'static [View];
+
+    /// The names of its passes, in the order it runs them (the times a frame reports): its
+    /// own name by default.
+    fn passes(&self) -> Vec<&'static str> {
+        vec![self.name()]
+    }
+
+    /// Its rule at a new epoch after `change` (nothing by default: a stage that keeps
+    /// nothing across frames).
+    fn start_epoch(&mut self, change: Change) {
+        let _ = change;
+    }
 
     /// The linear value of its view number `view` (an index into [`views`](Self::views)) at
     /// pixel `pixel` of `frame`: radiance, a feature, a statistic, as the view's documentation

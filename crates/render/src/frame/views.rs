@@ -1,37 +1,18 @@
-//! Every stage's views, by stage in the frame's order: the list the display pass's names are
-//! checked against (a configuration's `display.mode`, `--display`, an experiment's
-//! `display_modes`) and the viewer's menu is made from. A view is declared in its stage's file
-//! only (its `VIEWS`); this list names each stage once.
+//! Every stage's views, by stage in the frame's order ([`stages::views`]): what the display
+//! pass's names are checked against (a configuration's `display.mode`, `--display`, an
+//! experiment's `display_modes`) and the viewer's menu is made from. A view is declared in its
+//! stage's file only (its `VIEWS`).
 
 use std::str::FromStr;
 
 use serde::{Deserialize, Deserializer};
 
-use super::adaptive::{Adaptive, ADAPTIVE};
 use super::display::{DisplayMode, View};
-use super::filter::{Filter, FILTER};
-use super::history::{History, ACCUMULATE};
-use super::reprojection::{Reprojection, REPROJECT};
-use super::restir::{Restir, RESTIR};
-use super::texture_cache::{TextureCache, TEXTURE_CACHE};
-use super::trace::{Lighting, Primary, LIGHTING, PRIMARY};
-
-/// Each stage's name and views, in the frame's order (the pipeline's `stages()` holds the
-/// same stages in the same order: a test checks it).
-pub const STAGES: [(&str, &[View]); 8] = [
-    (REPROJECT, Reprojection::VIEWS),
-    (ADAPTIVE, Adaptive::VIEWS),
-    (PRIMARY, Primary::VIEWS),
-    (RESTIR, Restir::VIEWS),
-    (TEXTURE_CACHE, TextureCache::VIEWS),
-    (LIGHTING, Lighting::VIEWS),
-    (ACCUMULATE, History::VIEWS),
-    (FILTER, Filter::VIEWS),
-];
+use super::stages;
 
 /// Every view with its stage's name, in the frame's order.
 pub fn all() -> impl Iterator<Item = (&'static str, &'static View)> {
-    STAGES
+    stages::views()
         .iter()
         .flat_map(|(stage, views)| views.iter().map(move |v| (*stage, v)))
 }

@@ -484,7 +484,7 @@ impl Adaptive {
 
     /// At a new epoch: the schedule restarts; `clear`: the probabilities of the frame's
     /// `pixels` start unfixed (not when reprojection carried them into the new view).
-    pub fn start_epoch(&mut self, pixels: usize, clear: bool) {
+    pub fn restart(&mut self, pixels: usize, clear: bool) {
         if clear {
             self.reset(pixels);
         }
@@ -771,6 +771,11 @@ impl Stage for Adaptive {
 
     fn views(&self) -> &'static [View] {
         Self::VIEWS
+    }
+
+    /// None of its own: its work is part of the plan and of accumulation.
+    fn passes(&self) -> Vec<&'static str> {
+        Vec::new()
     }
 
     /// The probability (-1 before it is fixed, or when adaptive sampling never ran).

@@ -25,7 +25,7 @@
 //! accumulate  states, G-buffer, lighting             -> states, history (aliasing test on
 //!             the frame after a move)
 //! ```
-//! Its rule at a new epoch ([`Reprojection::start_epoch`]): after a change of the camera alone
+//! Its rule at a new epoch ([`Reprojection::carry`]): after a change of the camera alone
 //! (in a pipeline that accumulates, at the same size and state count) the reprojection pass
 //! carries the states, the history and adaptive sampling's probabilities into the new view;
 //! after any other change the states start afresh. Its views: `reprojected` and `rejection`.
@@ -383,7 +383,7 @@ impl Reprojection {
     /// `probability` into the new view (returns what it did; the pass's time is the frame's);
     /// otherwise the states start afresh (or are marked stale with the technique off).
     #[allow(clippy::too_many_arguments)]
-    pub fn start_epoch(
+    pub fn carry(
         &mut self,
         world: &World,
         config: &ReprojectionConfig,

@@ -84,7 +84,7 @@
 //!   follows the motion vectors as it does without reprojection. The pool and the pixels'
 //!   streams are keyed by the frame's sample index in its epoch (`frames * spp`), not by a
 //!   pixel's own count.
-//! - **History** ([`Restir::start_epoch`]): the reservoirs survive camera moves (temporal
+//! - **History** ([`Stage::start_epoch`]): the reservoirs survive camera moves (temporal
 //!   reuse follows the motion vectors) and frames that do not accumulate; any other change of
 //!   the settings, a reset or a new resolution forgets them.
 //! - **Cost**: the pass costs far more than the GPU implementations' (BENCHMARKS.md, "Seed
@@ -390,14 +390,6 @@ impl Restir {
     /// Forgets the previous frame (a new epoch, or a resize).
     pub fn reset(&mut self) {
         self.valid = false;
-    }
-
-    /// At a new epoch: a change of the settings forgets the previous frame's reservoirs; a
-    /// camera move, or a frame of a pipeline that does not accumulate, keeps them.
-    pub fn start_epoch(&mut self, change: Change) {
-        if change == Change::Settings {
-            self.reset();
-        }
     }
 
     /// The stage for a frame: its passes with `config`, its streams keyed by sample index
@@ -857,6 +849,18 @@ impl Stage for Restir {
 
     fn views(&self) -> &'static [View] {
         Self::VIEWS
+    }
+
+    fn passes(&self) -> Vec<&'static str> {
+        vec![RESTIR, RESTIR_TEMPORAL, RESTIR_SPATIAL]
+    }
+
+    /// At a new epoch: a change of the settings forgets the previous frame's reservoirs; a
+    /// camera move, or a frame of a pipeline that does not accumulate, keeps them.
+    fn start_epoch(&mut self, change: Change) {
+        if change == Change::Settings {
+            self.reset();
+        }
     }
 
     /// The last frame's reservoir's `M` (`reservoir-m`) or `W` (`reservoir-weight`); 0 where

@@ -294,13 +294,6 @@ impl TextureCache {
         },
     ];
 
-    /// At a new epoch: any change but a camera move (or a repeat) empties the cache.
-    pub fn start_epoch(&mut self, change: Change) {
-        if change == Change::Settings {
-            self.clear = true;
-        }
-    }
-
     /// Before the frame's lighting pass: the grids for `world`, the tables for `cfg`, the
     /// frame's counters, and the pixels' records (`pixels` of them, for the lighting pass to
     /// fill).
@@ -443,6 +436,13 @@ impl Stage for TextureCache {
 
     fn views(&self) -> &'static [View] {
         Self::VIEWS
+    }
+
+    /// At a new epoch: any change but a camera move (or a repeat) empties the cache.
+    fn start_epoch(&mut self, change: Change) {
+        if change == Change::Settings {
+            self.clear = true;
+        }
     }
 
     /// The cached light used (`cache-light`), the level, the cells shaded; zero where the
