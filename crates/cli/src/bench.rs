@@ -606,6 +606,7 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
                 "floor_ms": floors.as_ref().map(|f| f.ms),
                 "floor": floors.as_ref().map(Floor::by_kind_json),
                 "frame_over_floor": floors.as_ref().map(|f| ms_per_frame / f.ms),
+                "target": target(&reports, config.frame.target_ms).map(|t| t.1),
             })
         );
     } else {
@@ -638,6 +639,9 @@ fn run_frame(args: &FrameArgs) -> Result<()> {
             );
         }
         println!("memory: {plain_bpp:.0} bytes per pixel, {technique_bpp:.0} more for the techniques that are on");
+        if let Some((line, _)) = target(&reports, config.frame.target_ms) {
+            println!("{line}");
+        }
     }
     Ok(())
 }
@@ -694,6 +698,40 @@ impl Floor {
             .collect::<serde_json::Map<_, _>>()
             .into()
     }
+}
+
+/// The frame-time target over `reports` (`[frame] target_ms`; `None` without one): after the
+/// first frame, how many took longer than the target and the 95th percentile of their times;
+/// the render scale of the last frame and the lowest used. A line for the terminal and the
+/// JSON object (`target`).
+pub fn target(
+    reports: &[pathlight_render::frame::FrameReport],
+    target_ms: f32,
+) -> Option<(String, serde_json::Value)> {
+    if target_ms <= 0.0 || reports.len() < 2 {
+        return None;
+    }
+    let later = &reports[1..];
+    let over = later.iter().filter(|r| r.ms > target_ms as f64).count();
+    let mut ms: Vec<f64> = later.iter().map(|r| r.ms).collect();
+    ms.sort_by(f64::total_cmp);
+    let p95 = ms[((ms.len() as f64 * 0.95).ceil() as usize).clamp(1, ms.len()) - 1];
+    let last = later.last().map_or(1.0, |r| r.scale);
+    let lowest = later.iter().map(|r| r.scale).fold(1.0f32, f32::min);
+    let line = format!(
+        "target {target_ms} ms: {over} of {} frames after the first over it, 95% within \
+         {p95:.1} ms; render scale {last} at the end (lowest {lowest})",
+        later.len()
+    );
+    let json = json!({
+        "target_ms": target_ms,
+        "frames_over_target": over,
+        "frames": later.len(),
+        "p95_ms": p95,
+        "scale": last,
+        "lowest_scale": lowest,
+    });
+    Some((line, json))
 }
 
 /// Medians over frames.

@@ -108,6 +108,17 @@ pub struct ConfigArgs {
     #[arg(long, value_name = "N")]
     pub max_frames: Option<u32>,
 
+    /// Frame pipeline: the frame time to hold, in ms, by lowering the render scale (temporal
+    /// upsampling; 0: none). `[frame] target_ms` in a --config file.
+    #[arg(long, value_name = "MS")]
+    pub target_ms: Option<f32>,
+
+    /// Frame pipeline: trace this fraction of the output's size per axis and reconstruct the
+    /// output by temporal upsampling (1: the output's size; with --target-ms, the largest
+    /// scale it may use). `[frame.upsample] scale` in a --config file.
+    #[arg(long, value_name = "S")]
+    pub render_scale: Option<f32>,
+
     /// Seed 000's adaptive sampling: samples where the pixels' variance is (with
     /// --reprojection: the combination; `=false` turns off a configuration's).
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
@@ -447,6 +458,12 @@ impl ConfigArgs {
         if let Some(v) = self.max_frames {
             c.frame.max_frames = v;
         }
+        if let Some(v) = self.target_ms {
+            c.frame.target_ms = v;
+        }
+        if let Some(v) = self.render_scale {
+            c.frame.upsample.scale = v;
+        }
         let (adaptive, reprojection) = (&mut c.frame.adaptive, &mut c.frame.reprojection);
         adaptive.enabled = self.adaptive.unwrap_or(adaptive.enabled);
         adaptive.min_spp = self.min_spp.unwrap_or(adaptive.min_spp);
@@ -483,7 +500,16 @@ impl ConfigArgs {
         let mut flags: Vec<_> = self
             .frame_only_flags()
             .into_iter()
-            .filter(|f| !matches!(*f, "--display" | "--no-accumulate" | "--max-frames"))
+            .filter(|f| {
+                !matches!(
+                    *f,
+                    "--display"
+                        | "--no-accumulate"
+                        | "--max-frames"
+                        | "--target-ms"
+                        | "--render-scale"
+                )
+            })
             .collect();
         let filter = [
             ("--filter", self.filter.is_some()),
@@ -501,6 +527,8 @@ impl ConfigArgs {
             ("--display", self.display.is_some()),
             ("--no-accumulate", self.no_accumulate),
             ("--max-frames", self.max_frames.is_some()),
+            ("--target-ms", self.target_ms.is_some()),
+            ("--render-scale", self.render_scale.is_some()),
             ("--adaptive", self.adaptive.is_some()),
             ("--min-spp", self.min_spp.is_some()),
             ("--max-spp", self.max_spp.is_some()),

@@ -403,6 +403,10 @@ pub fn run(args: &PlayArgs) -> Result<()> {
         summary.worst_later_ms,
         summary.worst_later_ms / median
     );
+    let target = crate::bench::target(&reports, config.frame.target_ms);
+    if let Some((line, _)) = &target {
+        eprintln!("{line}");
+    }
     if args.json {
         println!(
             "{}",
@@ -413,6 +417,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
                 "first_frame_ms": summary.first_ms,
                 "first_over_median": summary.first_ms / median,
                 "worst_later_over_median": summary.worst_later_ms / median,
+                "target": target.map(|t| t.1),
                 "views": views.len(),
                 "width": config.width,
                 "height": config.height,

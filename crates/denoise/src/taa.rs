@@ -260,12 +260,12 @@ fn pixel(
 /// Light compressed into [0, 1) by its luminance, `c / (1 + Y)`, in which the box and the
 /// blend are worked out: a bright pixel (a light source, a firefly) then weighs as much as a
 /// white one, not its radiance's worth, and is not smeared over its neighbours.
-fn compress(c: Vec3) -> Vec3 {
+pub fn compress(c: Vec3) -> Vec3 {
     c * (1.0 / (1.0 + luminance(c).max(0.0)))
 }
 
 /// The inverse of [`compress`].
-fn expand(c: Vec3) -> Vec3 {
+pub fn expand(c: Vec3) -> Vec3 {
     c * (1.0 / (1.0 - luminance(c).clamp(0.0, 0.999)))
 }
 
@@ -428,20 +428,9 @@ fn reproject(
     if !p.is_finite() {
         return None;
     }
-    let (x0, y0) = (p.x.floor(), p.y.floor());
-    let (fx, fy) = (p.x - x0, p.y - y0);
     let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
-    for (dx, dy, w) in [
-        (0.0, 0.0, (1.0 - fx) * (1.0 - fy)),
-        (1.0, 0.0, fx * (1.0 - fy)),
-        (0.0, 1.0, (1.0 - fx) * fy),
-        (1.0, 1.0, fx * fy),
-    ] {
-        let (qx, qy) = (x0 + dx, y0 + dy);
-        if w <= 0.0 || qx < 0.0 || qy < 0.0 || qx >= width as f32 || qy >= height as f32 {
-            continue;
-        }
-        let at = qy as usize * 3 * width + qx as usize;
+    for (qx, qy, w) in bilinear_taps(p, width, height) {
+        let at = qy * 3 * width + qx;
         let h = Vec3::new(history[at], history[at + width], history[at + 2 * width]);
         if h.is_finite() {
             sum += h * w;
@@ -451,7 +440,32 @@ fn reproject(
     (weight >= 1e-3).then(|| sum * (1.0 / weight))
 }
 
-fn ycocg(c: Vec3) -> Vec3 {
+/// The bilinear taps of point `p` (pixels, 0 at the first pixel's centre) on an image of
+/// `width` x `height`: each pixel's column, row and weight, those outside the image or of no
+/// weight left out.
+pub fn bilinear_taps(
+    p: Vec2,
+    width: usize,
+    height: usize,
+) -> impl Iterator<Item = (usize, usize, f32)> {
+    let (x0, y0) = (p.x.floor(), p.y.floor());
+    let (fx, fy) = (p.x - x0, p.y - y0);
+    [
+        (0.0, 0.0, (1.0 - fx) * (1.0 - fy)),
+        (1.0, 0.0, fx * (1.0 - fy)),
+        (0.0, 1.0, (1.0 - fx) * fy),
+        (1.0, 1.0, fx * fy),
+    ]
+    .into_iter()
+    .filter_map(move |(dx, dy, w)| {
+        let (qx, qy) = (x0 + dx, y0 + dy);
+        let outside = qx < 0.0 || qy < 0.0 || qx >= width as f32 || qy >= height as f32;
+        (w > 0.0 && !outside).then_some((qx as usize, qy as usize, w))
+    })
+}
+
+/// Linear RGB to YCoCg.
+pub fn ycocg(c: Vec3) -> Vec3 {
     Vec3::new(
         0.25 * c.x + 0.5 * c.y + 0.25 * c.z,
         0.5 * c.x - 0.5 * c.z,
@@ -459,7 +473,8 @@ fn ycocg(c: Vec3) -> Vec3 {
     )
 }
 
-fn rgb(c: Vec3) -> Vec3 {
+/// YCoCg to linear RGB (the inverse of [`ycocg`]).
+pub fn rgb(c: Vec3) -> Vec3 {
     Vec3::new(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z)
 }
 

@@ -10,6 +10,7 @@ use crate::frame::adaptive::AdaptiveConfig;
 use crate::frame::reprojection::ReprojectionConfig;
 use crate::frame::restir::RestirConfig;
 use crate::frame::texture_cache::TextureCacheConfig;
+use crate::frame::upsample::UpsampleConfig;
 use crate::light::LightSelection;
 use crate::path::PathSettings;
 use crate::sampler::SamplerKind;
@@ -63,6 +64,10 @@ macro_rules! frame_config {
             pub accumulate: bool,
             /// Accumulation stops adding samples after this many frames (0: never).
             pub max_frames: u32,
+            /// The frame time to hold, in milliseconds, by the render scale
+            /// ([`crate::frame::target`]); 0: none (the frames are the same whatever the
+            /// machine's speed).
+            pub target_ms: f32,
             $($(#[$doc])* pub $field: $settings,)*
         }
 
@@ -71,6 +76,7 @@ macro_rules! frame_config {
                 Self {
                     accumulate: true,
                     max_frames: 0,
+                    target_ms: 0.0,
                     $($field: Default::default(),)*
                 }
             }
@@ -97,6 +103,8 @@ frame_config! {
     filter: FilterConfig,
     /// Seed 002's texture-space shading cache.
     texture_cache: TextureCacheConfig,
+    /// Temporal upsampling: the frame traced at a fraction of the output's size.
+    upsample: UpsampleConfig,
 }
 
 /// Largest image side accepted.
@@ -284,6 +292,14 @@ impl Config {
                         .into(),
                 ));
             }
+        }
+        let t = self.frame.target_ms;
+        if !(t.is_finite() && t >= 0.0) {
+            return Err(err(
+                "frame.target_ms",
+                &t,
+                "finite and >= 0 (0: no target)".into(),
+            ));
         }
         self.frame.validate_stages()?;
         Ok(())

@@ -230,9 +230,9 @@ fn every_display_mode_shows_the_box() {
         assert_eq!(pipeline.rgba.len(), 40 * 30 * 4);
         let distinct: std::collections::HashSet<&[u8]> = pipeline.rgba.chunks(4).collect();
         // Uniform here: samples (every pixel has as many), metallic (zero in the box), motion
-        // (the camera is still), seed 000's, seed 004's, seed 001's and seed 002's modes (their
-        // techniques are off; see tests/reprojection.rs, tests/restir.rs, tests/filter.rs and
-        // tests/texture_cache.rs).
+        // (the camera is still), seed 000's, seed 004's, seed 001's and seed 002's modes and
+        // temporal upsampling's (their techniques are off; see tests/reprojection.rs,
+        // tests/restir.rs, tests/filter.rs, tests/texture_cache.rs and tests/upsample.rs).
         let uniform = [
             "samples",
             "metallic",
@@ -253,6 +253,7 @@ fn every_display_mode_shows_the_box() {
             "cache-level",
             "cache-hits",
             "cache-shaded",
+            "upsample-samples",
         ]
         .contains(&name);
         // Roughness: the walls' 1 and the open front's sky.

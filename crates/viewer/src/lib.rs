@@ -152,6 +152,8 @@ pub struct Viewer {
     shown: Option<(FrameReport, u32, u32)>,
     shown_rgba: Vec<u8>,
     frames_shown: u64,
+    /// Frames shown that took longer than the frame-time target (`[frame] target_ms`).
+    over_target: u64,
     /// Smoothed frames per second of the frames shown.
     fps: f32,
     last_frame_at: Option<Instant>,
@@ -200,6 +202,7 @@ impl Viewer {
             shown: None,
             shown_rgba: Vec::new(),
             frames_shown: 0,
+            over_target: 0,
             fps: 0.0,
             last_frame_at: None,
             frozen_at: None,
@@ -353,6 +356,8 @@ impl Viewer {
         }
         self.last_frame_at = Some(now);
         self.frames_shown += 1;
+        let target = self.config.frame.target_ms as f64;
+        self.over_target += u64::from(target > 0.0 && frame.report.ms > target);
         self.shown = Some((frame.report, frame.width, frame.height));
         let old = std::mem::replace(&mut self.shown_rgba, frame.rgba);
         self.worker.give_back(old);

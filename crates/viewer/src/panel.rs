@@ -13,6 +13,7 @@ use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
 use pathlight_render::frame::texture_cache::{
     ranges, CacheFilter, CachedTerms, LodMeasure, Temporal, MAX_KERNEL,
 };
+use pathlight_render::frame::upsample::MIN_SCALE;
 use pathlight_render::frame::{stages, views};
 use pathlight_render::frame::{
     ACCUMULATE, DISPLAY, FILTER, LIGHTING, PRIMARY, REPROJECT, RESTIR, TEXTURE_CACHE,
@@ -62,6 +63,13 @@ fn timings(v: &mut Viewer, ui: &mut egui::Ui) {
         "{w} x {h}   {:.1} fps   {:.1} ms per frame",
         v.fps, report.ms
     ));
+    let target = v.config.frame.target_ms;
+    if target > 0.0 || report.scale < 1.0 {
+        ui.label(format!(
+            "render scale {}   target {target} ms: {} of {} frames over",
+            report.scale, v.over_target, v.frames_shown
+        ));
+    }
     ui.label(format!(
         "{} frames accumulated, {} spp   {:.1} Mrays/s",
         report.accumulated,
@@ -224,6 +232,12 @@ fn camera(v: &mut Viewer, ui: &mut egui::Ui) {
 
 fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     let c = &mut v.config;
+    ui.label(egui::RichText::new("frame time").strong());
+    ui.add(egui::Slider::new(&mut c.frame.target_ms, 0.0..=200.0).text("target ms"))
+        .on_hover_text("0: none; else the render scale steps down to hold it");
+    ui.add(egui::Slider::new(&mut c.frame.upsample.scale, MIN_SCALE..=1.0).text("render scale"))
+        .on_hover_text("below 1: temporal upsampling; with a target, the largest it uses");
+    ui.separator();
     ui.label(egui::RichText::new(REPROJECT).strong());
     let r = &mut c.frame.reprojection;
     ui.checkbox(

@@ -36,6 +36,8 @@ pub struct GPixel {
     pub motion: Vec2,
     /// The first hit is on a light source (an emissive triangle of the light list).
     pub emitter: bool,
+    /// Where the pixel's first camera sample lies on the film, in pixels.
+    pub film: Vec2,
 }
 
 /// Where a camera path goes on after its first hit: what the primary pass hands the lighting
@@ -60,6 +62,7 @@ impl Default for GPixel {
             depth: f32::INFINITY,
             motion: Vec2::ZERO,
             emitter: false,
+            film: Vec2::ZERO,
         }
     }
 }
@@ -136,6 +139,7 @@ pub fn primary(
     let camera = tracer.camera;
     let CameraSample {
         ray,
+        film,
         mut rng,
         sampler,
         ..
@@ -162,9 +166,11 @@ pub fn primary(
                 .lights
                 .triangle_light(v.surface.instance, v.surface.triangle)
                 .is_some(),
+            film,
         },
         None => GPixel {
             motion: now_and_then(&|c| c.project_direction(ray.direction)),
+            film,
             ..GPixel::default()
         },
     };

@@ -29,6 +29,10 @@
 //! adaptive      (end of frame)    history                             -> probabilities
 //! filter        filter            history, G-buffer, lighting         -> filtered image
 //!   (seed 001)
+//! upsample      upsample          this frame's samples, their film    -> the output (output
+//!   (issue 60,                    positions, motion, its history         size; the filter
+//!   scale < 1)                                                           stands aside)
+//! (target)                        the frame's time                    -> the next render scale
 //! display       display           a stage's view                      -> 8-bit RGBA
 //! ```
 //!
@@ -88,8 +92,10 @@ pub mod restir;
 pub mod stage;
 pub mod stages;
 pub mod state;
+pub mod target;
 pub mod texture_cache;
 pub mod trace;
+pub mod upsample;
 pub mod views;
 
 pub use display::DISPLAY;

@@ -4,6 +4,8 @@
 use std::time::Instant;
 
 use glam::Vec3;
+use pathlight_denoise::FilterConfig;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::config::{Config, FrameConfig};
@@ -12,15 +14,17 @@ use crate::world::World;
 
 use super::accumulation::PixelStats;
 use super::adaptive::Adaptive;
-use super::display::{DisplayConfig, DisplayMode, DISPLAY};
+use super::display::{encode, DisplayConfig, DisplayMode, DISPLAY};
 use super::history::{History, ACCUMULATE};
 use super::plan::{with_plan, FramePlan, Planned};
 use super::reprojection::{Reprojection, ReprojectionReport};
 use super::stage::{view_index, Stage};
 use super::stages::Stages;
 use super::state::{Change, FrameState, PassTime, Times};
+use super::target::Target;
 use super::texture_cache::CacheReport;
 use super::trace::{self, FirstHitLight, NextEvent, Uniform, LIGHTING};
+use super::upsample::{render_size, UPSAMPLE};
 
 /// What one call of [`Pipeline::render_frame`] did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -60,6 +64,8 @@ pub struct FrameReport {
     /// What seed 002's texture cache did (when it is on).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture_cache: Option<CacheReport>,
+    /// The render scale the frame was traced at (1: the output's size; below 1, upsampled).
+    pub scale: f32,
 }
 
 impl FrameReport {
@@ -86,6 +92,8 @@ pub struct Pipeline {
     pub rgba: Vec<u8>,
     /// Each stage's own state, in the frame's order.
     pub stages: Stages,
+    /// The frame-time target's state.
+    target: Target,
 }
 
 impl Pipeline {
@@ -106,6 +114,16 @@ impl Pipeline {
     /// The camera of the current epoch (after the first frame).
     pub fn camera(&self) -> Option<&crate::camera::Camera> {
         self.frame.camera.as_ref()
+    }
+
+    /// The render scale of the next frame: the configuration's (`[frame.upsample] scale`),
+    /// or below it the frame-time target's.
+    pub fn scale(&self) -> f32 {
+        let c = &self.config.frame;
+        match c.target_ms > 0.0 {
+            true => self.target.scale(c.upsample.scale),
+            false => c.upsample.scale,
+        }
     }
 
     /// Frames accumulated in this epoch.
@@ -150,6 +168,7 @@ impl Pipeline {
         let change =
             (self.reset.take()).or((!self.config.frame.accumulate).then_some(Change::Repeat));
         let mut reprojected = change.and_then(|change| self.start_epoch(world, change));
+        let scale = self.scale();
         let (config, f, s) = (&self.config, &mut self.frame, &mut self.stages);
         let cfg = &config.frame;
         // Seed 000's techniques: each pixel continues its own sample count.
@@ -216,9 +235,10 @@ impl Pipeline {
             f.previous_camera = Some(camera);
         }
         f.number += 1;
-        // Seed 001's reconstruction filter.
-        s.filter.pass(&cfg.filter, f, traced, !counts);
-        FrameReport {
+        // Seed 001's reconstruction filter, or temporal upsampling.
+        let output = (config.width as usize, config.height as usize);
+        reconstruct(cfg, output, scale, f, s, traced, !counts);
+        let report = FrameReport {
             frame: f.number,
             epoch: f.epoch,
             accumulated: f.frames,
@@ -235,20 +255,46 @@ impl Pipeline {
             tau,
             probability_above_one: above_one,
             texture_cache: cache_report,
+            scale,
+        };
+        self.hold_target(&report, change);
+        report
+    }
+
+    /// The frame-time target after a frame (`change`: what started its epoch, if anything):
+    /// its time counted unless the frame started afresh (a cold frame), and a step of the
+    /// scale makes the next frame a new render size. Without a target, it starts over.
+    fn hold_target(&mut self, report: &FrameReport, change: Option<Change>) {
+        let c = &self.config.frame;
+        if c.target_ms <= 0.0 {
+            self.target.reset();
+            return;
+        }
+        if !report.traced || change == Some(Change::Settings) {
+            return;
+        }
+        if self
+            .target
+            .after_frame(report.ms, c.target_ms, c.upsample.scale)
+            .is_some()
+        {
+            self.reset = Some(self.reset.map_or(Change::Scale, |r| r.and(Change::Scale)));
         }
     }
 
     /// A new epoch after `change`: the frame state (seed, camera, buffers), then each stage
     /// by its own rule. Returns what forward reprojection did, when it carried the history.
     fn start_epoch(&mut self, world: &World, change: Change) -> Option<ReprojectionReport> {
+        // The frame is traced at the render size (the output's unless upsampling); after a
+        // step of the scale, the previous frame's camera was of another size: no motion.
+        let scale = self.scale();
         let (c, f) = (&self.config, &mut self.frame);
-        let (previous, resized) = f.start_epoch(
-            c.path_settings(),
-            c.spp,
-            c.render_camera(world),
-            c.width,
-            c.height,
-        );
+        let (width, height) = render_size(scale, c.width, c.height);
+        if change == Change::Scale {
+            f.previous_camera = None;
+        }
+        let camera = world.camera(&c.camera, width, height);
+        let (previous, resized) = f.start_epoch(c.path_settings(), c.spp, camera, width, height);
         let cfg = &c.frame;
         let stages = &mut self.stages;
         let reprojected = stages.reprojection.carry(
@@ -295,28 +341,64 @@ impl Pipeline {
     /// View `mode` as 8-bit RGBA into `out` with the settings `display` (black for a name no
     /// stage has).
     pub fn rgba8(&self, mode: &DisplayMode, display: &DisplayConfig, out: &mut Vec<u8>) {
-        match self.view(mode) {
-            Some((stage, view)) => stage.rgba8(&self.frame, view, display, out),
-            None => {
+        match (self.view(mode), self.output()) {
+            (Some((stage, view)), None) => stage.rgba8(&self.frame, view, display, out),
+            (Some((stage, view)), Some(n)) => {
+                let kind = stage.views()[view].kind;
+                let value = |i| self.value(mode, i);
+                let paint = |i| stage.paint(&self.frame, view, self.render_pixel(i));
+                encode(kind, n, value, paint, display, out);
+            }
+            (None, n) => {
                 out.clear();
-                out.resize(self.frame.pixels() * 4, 0);
+                out.resize(n.unwrap_or(self.frame.pixels()) * 4, 0);
             }
         }
     }
 
     /// View `mode`'s linear values, row-major (zero for a name no stage has).
     pub fn linear(&self, mode: &DisplayMode) -> Vec<Vec3> {
-        match self.view(mode) {
-            Some((stage, view)) => stage.linear(&self.frame, view),
-            None => vec![Vec3::ZERO; self.frame.pixels()],
+        match (self.view(mode), self.output()) {
+            (Some((stage, view)), None) => stage.linear(&self.frame, view),
+            (_, Some(n)) => (0..n)
+                .into_par_iter()
+                .map(|i| self.value(mode, i))
+                .collect(),
+            (None, None) => vec![Vec3::ZERO; self.frame.pixels()],
         }
     }
 
-    /// View `mode`'s linear value at pixel `pixel`.
+    /// View `mode`'s linear value at pixel `pixel` (of the output: while upsampling, the
+    /// output's own for `final` and the upsampler's view, the nearest render pixel's for the
+    /// others).
     pub fn value(&self, mode: &DisplayMode, pixel: usize) -> Vec3 {
+        let up = &self.stages.upsample;
+        if up.active() && *mode == DisplayMode::FINAL {
+            return up.colour(pixel);
+        }
         self.view(mode).map_or(Vec3::ZERO, |(stage, view)| {
-            stage.value(&self.frame, view, pixel)
+            let own = up.active() && stage.name() == up.name();
+            let at = if own { pixel } else { self.render_pixel(pixel) };
+            stage.value(&self.frame, view, at)
         })
+    }
+
+    /// The output's pixel count while upsampling (`None`: the output is the frame's own).
+    fn output(&self) -> Option<usize> {
+        let up = &self.stages.upsample;
+        up.active().then(|| up.size().0 * up.size().1)
+    }
+
+    /// The render pixel nearest output pixel `i` while upsampling (`i` itself otherwise).
+    fn render_pixel(&self, i: usize) -> usize {
+        let up = &self.stages.upsample;
+        if !up.active() {
+            return i;
+        }
+        let ((w, h), g) = (up.size(), &self.frame.gbuffer);
+        let (rw, rh) = (g.width as usize, g.height as usize);
+        let (x, y) = (i % w, i / w);
+        (y * rh / h) * rw + x * rw / w
     }
 
     /// The image (mean radiance, filtered when the filter is on), row-major.
@@ -332,6 +414,37 @@ impl Pipeline {
         let techniques =
             self.stages.all().iter().map(|s| s.bytes()).sum::<usize>() + self.frame.hits_bytes();
         (plain, techniques)
+    }
+}
+
+/// The image at the output's size after a frame (`traced`: it traced samples; `every_pixel`:
+/// every pixel afresh): the render size's reconstruction filter (seed 001's) when it is the
+/// output's; below it (render `scale` under 1) temporal upsampling of the frame's samples to
+/// the `output` size instead, the filter standing aside.
+fn reconstruct(
+    cfg: &FrameConfig,
+    output: (usize, usize),
+    scale: f32,
+    f: &mut FrameState,
+    s: &mut Stages,
+    traced: bool,
+    every_pixel: bool,
+) {
+    let upsampling = scale < 1.0;
+    let off = FilterConfig::default();
+    s.filter.pass(
+        if upsampling { &off } else { &cfg.filter },
+        f,
+        traced,
+        every_pixel,
+    );
+    if upsampling && traced {
+        let t = Instant::now();
+        let samples: Vec<Vec3> = f.lighting.par_iter().map(|l| l.stats.mean()).collect();
+        s.upsample.pass(&cfg.upsample, &samples, &f.gbuffer, output);
+        f.times.since(UPSAMPLE, t);
+    } else if !upsampling && s.upsample.active() {
+        s.upsample.clear();
     }
 }
 
@@ -384,6 +497,7 @@ fn change(old: &Config, new: &Config) -> Option<Change> {
         display: Default::default(),
         frame: FrameConfig {
             max_frames: 0,
+            target_ms: 0.0,
             filter: Default::default(),
             ..c.frame.clone()
         },

@@ -20,6 +20,7 @@ use super::stage::Stage;
 use super::state::Change;
 use super::texture_cache::TextureCache;
 use super::trace::{Lighting, Primary};
+use super::upsample::Upsample;
 
 /// Makes [`Stages`] from the list of its fields and their types, in the frame's order.
 macro_rules! stages {
@@ -53,6 +54,7 @@ stages! {
     lighting: Lighting,
     history: History,
     filter: Filter,               // seed 001
+    upsample: Upsample,           // issue 60
 }
 
 impl Stages {

@@ -24,6 +24,10 @@ pub enum Change {
     /// The camera's view, and nothing else: forward reprojection may carry the history over,
     /// ReSTIR's reservoirs follow the motion vectors.
     Camera,
+    /// The render size alone (the frame-time target's scale, [`super::target`]): the stages
+    /// that keep per-pixel state at the render size start afresh; the output's history and
+    /// the texture-space cache (which lives on the surfaces) do not.
+    Scale,
     /// Anything else that changes the image, a reset, or the first frame: every stage starts
     /// afresh.
     Settings,
@@ -34,6 +38,8 @@ impl Change {
     pub fn and(self, other: Change) -> Change {
         if self == Change::Settings || other == Change::Settings {
             Change::Settings
+        } else if self == Change::Scale || other == Change::Scale {
+            Change::Scale
         } else if self == Change::Camera || other == Change::Camera {
             Change::Camera
         } else {

@@ -858,7 +858,7 @@ impl Stage for Restir {
     /// At a new epoch: a change of the settings forgets the previous frame's reservoirs; a
     /// camera move, or a frame of a pipeline that does not accumulate, keeps them.
     fn start_epoch(&mut self, change: Change) {
-        if change == Change::Settings {
+        if matches!(change, Change::Settings | Change::Scale) {
             self.reset();
         }
     }
