@@ -169,8 +169,12 @@ impl Upsample {
         let (rw, rh) = (gbuffer.width as usize, gbuffer.height as usize);
         let to_output = Vec2::new(width as f32 / rw as f32, height as f32 / rh as f32);
         let boxes = boxes(samples, rw, rh);
-        let points: Vec<(Vec3, Vec2)> = (samples.par_iter().zip(&gbuffer.pixels))
-            .map(|(c, g)| (*c, g.film * to_output))
+        let points: Vec<Point> = (samples.par_iter().zip(&gbuffer.pixels))
+            .map(|(c, g)| Point {
+                c: *c,
+                compressed: compress(*c),
+                film: g.film * to_output,
+            })
             .collect();
         let input = Input {
             points: &points,
@@ -227,6 +231,15 @@ fn boxes(samples: &[Vec3], w: usize, h: usize) -> Vec<Neighbourhood> {
         .collect()
 }
 
+/// A render pixel's sample: its value, compressed by its luminance, and its film position in
+/// output pixels.
+#[derive(Debug, Clone, Copy)]
+struct Point {
+    c: Vec3,
+    compressed: Vec3,
+    film: Vec2,
+}
+
 /// A render pixel's 3x3 neighbourhood: [`boxes`].
 #[derive(Debug, Clone, Copy)]
 struct Neighbourhood {
@@ -237,8 +250,8 @@ struct Neighbourhood {
 
 /// What every output pixel reads.
 struct Input<'a> {
-    /// Each render pixel's sample and its film position in output pixels.
-    points: &'a [(Vec3, Vec2)],
+    /// Each render pixel's sample.
+    points: &'a [Point],
     gbuffer: &'a GBuffer,
     boxes: &'a [Neighbourhood],
     render: (usize, usize),
@@ -271,17 +284,22 @@ impl Input<'_> {
         // them weighs as a white sample, not its radiance's worth, while the view moves).
         let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
         if moved {
-            self.around(rx, ry, |c, film| {
-                let t =
-                    (1.0 - (film - centre).length_squared() * (1.0 / (RADIUS * RADIUS))).max(0.0);
-                (sum, weight) = (sum + compress(c) * (t * t), weight + t * t);
+            let mut max = Vec3::ZERO;
+            self.around(rx, ry, |p| {
+                let d = (p.film - centre).length_squared();
+                let t = (1.0 - d * (1.0 / (RADIUS * RADIUS))).max(0.0);
+                (sum, weight) = (sum + p.compressed * (t * t), weight + t * t);
+                if t > 0.0 {
+                    max = max.max(p.c);
+                }
             });
-            let old = self.moved(history, centre, (rx, ry), (sum, weight), cap, gamma);
-            let total = old.count + weight;
+            let (old, count) = self.moved(history, centre, (rx, ry), (sum, weight), cap, gamma);
+            let total = count + weight;
             if total > 0.0 {
-                let blend = (compress(old.colour) * old.count + sum) / total;
+                let blend = (old * count + sum) / total;
+                let max = max.max(self.boxes[ry * rw + rx].max);
                 return Texel {
-                    colour: expand(blend),
+                    colour: expand(blend).clamp(Vec3::ZERO, max),
                     count: total,
                 };
             }
@@ -290,9 +308,9 @@ impl Input<'_> {
             let last = (first + Vec2::ONE / self.to_output).min(Vec2::new(rw as f32, rh as f32));
             for qy in first.y as usize..(last.y.ceil() as usize).min(rh) {
                 for qx in first.x as usize..(last.x.ceil() as usize).min(rw) {
-                    let (c, film) = self.points[qy * rw + qx];
-                    if c.is_finite() && (film.x as usize, film.y as usize) == at {
-                        (sum, weight) = (sum + c, weight + 1.0);
+                    let p = self.points[qy * rw + qx];
+                    if p.c.is_finite() && (p.film.x as usize, p.film.y as usize) == at {
+                        (sum, weight) = (sum + p.c, weight + 1.0);
                     }
                 }
             }
@@ -311,9 +329,9 @@ impl Input<'_> {
         // Nothing here yet (still, and no sample landed): the samples around, nearer ones
         // weighing more, counting as none (the first sample replaces them).
         let (mut near, mut weight) = (Vec3::ZERO, 0.0f32);
-        self.around(rx, ry, |c, film| {
-            let w = 1.0 / (1.0 + (film - centre).length_squared());
-            (near, weight) = (near + c * w, weight + w);
+        self.around(rx, ry, |p| {
+            let w = 1.0 / (1.0 + (p.film - centre).length_squared());
+            (near, weight) = (near + p.c * w, weight + w);
         });
         Texel {
             colour: near / weight.max(1e-12),
@@ -321,12 +339,11 @@ impl Input<'_> {
         }
     }
 
-    /// The history of the output pixel at `centre` after a move: fetched where its surface
-    /// was (the motion of render pixel `render`), clamped to that render pixel's box
-    /// stretched to hold this frame's estimate (its samples' weighted sum in compressed light
-    /// and weight), and
-    /// weighing at most `cap` times their weight; none where the surface was not in the
-    /// image.
+    /// The history of the output pixel at `centre` after a move, in compressed light, and the
+    /// samples it weighs: fetched where its surface was (the motion of render pixel `render`),
+    /// clamped to that render pixel's box stretched to hold this frame's estimate (its
+    /// samples' weighted sum in compressed light and weight), weighing at most `cap` times
+    /// their weight; none where the surface was not in the image.
     fn moved(
         &self,
         history: &[Texel],
@@ -335,39 +352,33 @@ impl Input<'_> {
         (sum, weight): (Vec3, f32),
         cap: f32,
         gamma: f32,
-    ) -> Texel {
+    ) -> (Vec3, f32) {
         let rw = self.render.0;
         let motion = self.gbuffer.pixels[ry * rw + rx].motion * self.to_output;
         let (w, h) = self.output;
         let Some(old) = fetch(history, centre - Vec2::splat(0.5) + motion, w, h) else {
-            return Texel::default();
+            return (Vec3::ZERO, 0.0);
         };
         let b = self.boxes[ry * rw + rx];
         let (mut low, mut high) = (b.mean - gamma * b.sigma, b.mean + gamma * b.sigma);
-        let mut max = b.max;
         if weight > 0.0 {
-            let new = sum / weight;
-            let c = ycocg(new);
-            (low, high, max) = (low.min(c), high.max(c), max.max(expand(new)));
+            let c = ycocg(sum / weight);
+            (low, high) = (low.min(c), high.max(c));
         }
         let c = ycocg(compress(old.colour)).clamp(low, high);
-        Texel {
-            colour: expand(rgb(c)).clamp(Vec3::ZERO, max),
-            // (A pixel with no sample near keeps its history, as if it had a quarter of one.)
-            count: old.count.min(weight.max(0.25) * cap),
-        }
+        // (A pixel with no sample near keeps its history, as if it had a quarter of one.)
+        (rgb(c), old.count.min(weight.max(0.25) * cap))
     }
 
-    /// Calls `f` with the finite samples of the 3x3 render pixels around (`rx`, `ry`) and
-    /// their film positions in output pixels.
+    /// Calls `f` with the finite samples of the 3x3 render pixels around (`rx`, `ry`).
     #[inline(always)]
-    fn around(&self, rx: usize, ry: usize, mut f: impl FnMut(Vec3, Vec2)) {
+    fn around(&self, rx: usize, ry: usize, mut f: impl FnMut(&Point)) {
         let (rw, rh) = self.render;
         for qy in ry.saturating_sub(1)..(ry + 2).min(rh) {
             for qx in rx.saturating_sub(1)..(rx + 2).min(rw) {
-                let (c, film) = self.points[qy * rw + qx];
-                if c.is_finite() {
-                    f(c, film);
+                let p = &self.points[qy * rw + qx];
+                if p.c.is_finite() {
+                    f(p);
                 }
             }
         }
