@@ -293,13 +293,14 @@ impl Config {
                 ));
             }
         }
-        let t = self.frame.target_ms;
-        if !(t.is_finite() && t >= 0.0) {
-            return Err(err(
-                "frame.target_ms",
-                &t,
-                "finite and >= 0 (0: no target)".into(),
-            ));
+        let (t, range) = (self.frame.target_ms, crate::frame::target::TARGET_MS);
+        if !range.contains(&t) {
+            let want = format!(
+                "between {} and {} (0: no target)",
+                range.start(),
+                range.end()
+            );
+            return Err(err("frame.target_ms", &t, want));
         }
         self.frame.validate_stages()?;
         Ok(())

@@ -181,6 +181,11 @@ fn settings_out_of_range_are_refused_by_name() {
         let e = c.validate().unwrap_err();
         assert!(e.field.starts_with("frame.upsample."), "{e}");
     }
+    for target in [-1.0, f32::NAN, 1e9] {
+        let mut c = config(1.0);
+        c.frame.target_ms = target;
+        assert_eq!(c.validate().unwrap_err().field, "frame.target_ms");
+    }
     assert_eq!(render_size(0.5, 320, 180), (160, 90));
     assert_eq!(render_size(1.0, 321, 181), (321, 181));
 }

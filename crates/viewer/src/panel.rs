@@ -10,6 +10,7 @@ use pathlight_render::denoise::{
 use pathlight_render::frame::adaptive::Measure;
 use pathlight_render::frame::display::{DisplayMode, View};
 use pathlight_render::frame::reprojection::{Fate, MAX_FRESH_SPP};
+use pathlight_render::frame::target::TARGET_MS;
 use pathlight_render::frame::texture_cache::{
     ranges, CacheFilter, CachedTerms, LodMeasure, Temporal, MAX_KERNEL,
 };
@@ -233,7 +234,7 @@ fn camera(v: &mut Viewer, ui: &mut egui::Ui) {
 fn passes(v: &mut Viewer, ui: &mut egui::Ui) {
     let c = &mut v.config;
     ui.label(egui::RichText::new("frame time").strong());
-    ui.add(egui::Slider::new(&mut c.frame.target_ms, 0.0..=200.0).text("target ms"))
+    ui.add(egui::Slider::new(&mut c.frame.target_ms, TARGET_MS).text("target ms"))
         .on_hover_text("0: none; else the render scale steps down to hold it");
     ui.add(egui::Slider::new(&mut c.frame.upsample.scale, MIN_SCALE..=1.0).text("render scale"))
         .on_hover_text("below 1: temporal upsampling; with a target, the largest it uses");

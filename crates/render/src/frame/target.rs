@@ -14,6 +14,10 @@
 //!
 //! With `target_ms = 0` it does nothing, and the scale is the configuration's.
 
+/// The targets accepted, in ms (0: none): what `validate()` checks and the viewer's slider
+/// spans.
+pub const TARGET_MS: std::ops::RangeInclusive<f32> = 0.0..=1000.0;
+
 /// The render scales the target steps through, largest first.
 pub const STEPS: [f32; 6] = [1.0, 0.85, 0.7, 0.6, 0.5, 0.4];
 /// Frames after a step before the next step down.
