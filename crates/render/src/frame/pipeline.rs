@@ -345,9 +345,8 @@ impl Pipeline {
             (Some((stage, view)), None) => stage.rgba8(&self.frame, view, display, out),
             (Some((stage, view)), Some(n)) => {
                 let kind = stage.views()[view].kind;
-                let value = |i| self.value(mode, i);
                 let paint = |i| stage.paint(&self.frame, view, self.render_pixel(i));
-                encode(kind, n, value, paint, display, out);
+                encode(kind, n, self.values(mode), paint, display, out);
             }
             (None, n) => {
                 out.clear();
@@ -360,10 +359,7 @@ impl Pipeline {
     pub fn linear(&self, mode: &DisplayMode) -> Vec<Vec3> {
         match (self.view(mode), self.output()) {
             (Some((stage, view)), None) => stage.linear(&self.frame, view),
-            (_, Some(n)) => (0..n)
-                .into_par_iter()
-                .map(|i| self.value(mode, i))
-                .collect(),
+            (_, Some(n)) => (0..n).into_par_iter().map(self.values(mode)).collect(),
             (None, None) => vec![Vec3::ZERO; self.frame.pixels()],
         }
     }
@@ -372,15 +368,24 @@ impl Pipeline {
     /// output's own for `final` and the upsampler's view, the nearest render pixel's for the
     /// others).
     pub fn value(&self, mode: &DisplayMode, pixel: usize) -> Vec3 {
+        self.values(mode)(pixel)
+    }
+
+    /// View `mode`'s linear value at each output pixel, as [`value`](Self::value) says: the
+    /// stage and view found once, not per pixel.
+    fn values(&self, mode: &DisplayMode) -> impl Fn(usize) -> Vec3 + Sync + '_ {
         let up = &self.stages.upsample;
-        if up.active() && *mode == DisplayMode::FINAL {
-            return up.colour(pixel);
+        let output = up.active() && *mode == DisplayMode::FINAL;
+        let found = self.view(mode);
+        let own = found.is_some_and(|(stage, _)| up.active() && stage.name() == up.name());
+        move |pixel| match (output, found) {
+            (true, _) => up.colour(pixel),
+            (false, None) => Vec3::ZERO,
+            (false, Some((stage, view))) => {
+                let at = if own { pixel } else { self.render_pixel(pixel) };
+                stage.value(&self.frame, view, at)
+            }
         }
-        self.view(mode).map_or(Vec3::ZERO, |(stage, view)| {
-            let own = up.active() && stage.name() == up.name();
-            let at = if own { pixel } else { self.render_pixel(pixel) };
-            stage.value(&self.frame, view, at)
-        })
     }
 
     /// The output's pixel count while upsampling (`None`: the output is the frame's own).
