@@ -94,6 +94,9 @@ pub enum LaneLight {
         two_sided: bool,
         emission: Vec3,
     },
+    /// Light from a direction, the same at every point (the environment's direction, a
+    /// directional light): unit `wi` toward it, the radiance (illuminance) arriving along it.
+    Distant { wi: Vec3, radiance: Vec3 },
 }
 
 /// A point chosen on a light, independent of any shading point (seed 004's reservoirs keep
@@ -194,11 +197,12 @@ pub struct Lights {
 /// A light as the SIMD lanes read it ([`Lights::lane_light`]).
 #[derive(Debug, Clone, Copy)]
 enum LaneEntry {
-    /// Not in the lanes: spot and directional lights, the environment, lights that cannot
-    /// be selected.
+    /// Not in the lanes: spot lights, lights that cannot be selected.
     None,
-    /// A point light: the same wherever it is seen from.
-    Point(LaneLight),
+    /// A point or directional light: the same wherever it is seen from.
+    Fixed(LaneLight),
+    /// The environment: its radiance along the point's direction.
+    Environment,
     /// An emissive triangle, with its emission when that has no texture.
     Triangle {
         normal: Vec3,
@@ -451,12 +455,20 @@ impl Lights {
                 position,
                 intensity,
                 inv_range,
-            }) => LaneEntry::Point(LaneLight::Point {
+            }) => LaneEntry::Fixed(LaneLight::Point {
                 position,
                 intensity,
                 inv_range,
             }),
-            _ => LaneEntry::None,
+            Some(&Punctual::Directional { wi, illuminance }) => {
+                LaneEntry::Fixed(LaneLight::Distant {
+                    wi,
+                    radiance: illuminance,
+                })
+            }
+            Some(Punctual::Spot { .. }) => LaneEntry::None,
+            None if self.environment.is_some() => LaneEntry::Environment,
+            None => LaneEntry::None,
         }
     }
 
@@ -567,15 +579,28 @@ impl Lights {
     }
 
     /// What seed 004's lanes need to evaluate `point` as
-    /// [`evaluate_geometry`](Self::evaluate_geometry) does, for point lights and emissive
-    /// triangles whose selection probability is positive and finite; `None` for every other
-    /// light (the lanes leave those to `evaluate_geometry`).
+    /// [`evaluate_geometry`](Self::evaluate_geometry) does, for point and directional lights,
+    /// emissive triangles and the environment whose selection probability is positive and
+    /// finite (the environment's radiance looked up once here, zero where its density is not
+    /// positive and finite, as `evaluate_geometry` finds nothing there); `None` for every
+    /// other light (the lanes leave those to `evaluate_geometry`).
     #[inline]
     pub fn lane_light(&self, point: &LightPoint) -> Option<LaneLight> {
         let index = point.light as usize;
         match *self.lanes.get(index)? {
             LaneEntry::None => None,
-            LaneEntry::Point(light) => Some(light),
+            LaneEntry::Fixed(light) => Some(light),
+            LaneEntry::Environment => {
+                let texel = self.environment.as_ref()?.map.lookup(point.point);
+                let pdf = self.selection_pmf(index) * texel.pdf;
+                Some(LaneLight::Distant {
+                    wi: point.point,
+                    radiance: match pdf > 0.0 && pdf.is_finite() {
+                        true => texel.radiance,
+                        false => Vec3::ZERO,
+                    },
+                })
+            }
             LaneEntry::Triangle {
                 normal,
                 two_sided,

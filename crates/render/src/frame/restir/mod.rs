@@ -68,7 +68,9 @@
 //!   index, so frames do not depend on the thread count.
 //! - **Speed**: a block's targets on point lights and emissive triangles are computed in one
 //!   branch-free loop over its structure of arrays, which the compiler turns into SIMD lanes
-//!   (AVX-512 or AVX2 chosen at run time; other lights are evaluated one by one); a block is
+//!   (AVX-512 or AVX2 chosen at run time), and so are the environment's directions and
+//!   directional lights (the environment's radiance looked up once per pool entry instead of
+//!   once per candidate); spot lights are evaluated one by one. A block is
 //!   resampled on its own (one lane chosen by the prefix sums of its weights) and merged into
 //!   the reservoir with its weight sum, three random numbers per block. The spatial pass
 //!   evaluates a pixel's neighbours' samples together the same way, prefetches the neighbours

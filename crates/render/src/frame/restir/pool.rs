@@ -38,8 +38,9 @@ const POOL_STREAM: u64 = 0x9001_b10c;
 
 /// `N` light points (at most 16; [`LANES`] in the pool), structure of arrays. Point lights:
 /// position `q`, intensity `e`, `inv_range`; triangles: the point `q`, its emission `e`, the
-/// unit normal `n` and the sidedness. A lane that holds no candidate (a failed draw) has
-/// `inv_density` 0.
+/// unit normal `n` and the sidedness; distant light (the environment, directional lights):
+/// the unit direction toward it `q`, the radiance arriving along it `e`. A lane that holds
+/// no candidate (a failed draw) has `inv_density` 0.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
 pub struct Block<const N: usize = LANES> {
@@ -51,8 +52,10 @@ pub struct Block<const N: usize = LANES> {
     pub inv_density: [f32; N],
     pub triangle: [bool; N],
     pub two_sided: [bool; N],
-    /// Bit `k`: lane `k` holds a light the lanes do not compute (spot and directional lights,
-    /// the environment), evaluated one by one.
+    /// Bit `k`: lane `k` holds a distant light.
+    pub distant: u16,
+    /// Bit `k`: lane `k` holds a light the lanes do not compute (spot lights), evaluated one
+    /// by one.
     pub scalar: u16,
 }
 
@@ -66,6 +69,7 @@ impl<const N: usize> Default for Block<N> {
             inv_density: [0.0; N],
             triangle: [false; N],
             two_sided: [false; N],
+            distant: 0,
             scalar: 0,
         }
     }
@@ -101,6 +105,11 @@ impl<const N: usize> Block<N> {
                 Self::set_vec(&mut self.e, k, emission);
                 Self::set_vec(&mut self.n, k, normal);
                 (self.triangle[k], self.two_sided[k]) = (true, two_sided);
+            }
+            Some(LaneLight::Distant { wi, radiance }) => {
+                Self::set_vec(&mut self.q, k, wi);
+                Self::set_vec(&mut self.e, k, radiance);
+                self.distant |= 1 << k;
             }
             None => self.scalar |= 1 << k,
         }

@@ -123,8 +123,8 @@ impl Receiver {
         self.resample_blocks::<false>(pool, lights, count, rng)
     }
 
-    /// [`candidates`](Self::candidates) with the targets of a block's point lights and
-    /// triangles computed together in a loop without branches, which the compiler turns into
+    /// [`candidates`](Self::candidates) with the targets of a block's point lights,
+    /// triangles and distant lights computed together in a loop without branches, which the compiler turns into
     /// SIMD lanes (`block_targets`), the other lights one by one; for
     /// the build's baseline instructions.
     pub fn candidates_in_lanes(
@@ -289,13 +289,24 @@ impl Receiver {
         r
     }
 
-    /// The target function of a block's point lights and triangles here, as
-    /// [`target`](Self::target) computes it for each (to rounding), in one loop without
-    /// branches on the lanes: `lum(f e) |cos| a / d^2`, with `a` the range window of a point
-    /// light or the cosine at a triangle. Lanes of other lights get garbage (the caller
-    /// replaces them).
+    /// The target function of a block's point lights, triangles and distant lights here, as
+    /// [`target`](Self::target) computes it for each, in one loop without branches on the
+    /// lanes: `lum(f e) |cos| a / d^2` to rounding, with `a` the range window of a point light
+    /// or the cosine at a triangle; `lum(f |cos| e)` bit for bit for a distant light (the
+    /// environment's direction, a directional light: the same arithmetic as `target`). Lanes
+    /// of other lights get garbage (the caller replaces them).
     #[inline(always)]
     pub(super) fn block_targets<const N: usize>(&self, b: &Block<N>) -> [f32; N] {
+        // Blocks without distant lights skip their arithmetic.
+        if b.distant == 0 {
+            self.block_targets_with::<false, N>(b)
+        } else {
+            self.block_targets_with::<true, N>(b)
+        }
+    }
+
+    #[inline(always)]
+    fn block_targets_with<const DISTANT: bool, const N: usize>(&self, b: &Block<N>) -> [f32; N] {
         let s = &self.surface;
         let wo_ng = self.wo.dot(s.ng);
         let mut out = [0.0; N];
@@ -303,11 +314,12 @@ impl Receiver {
             let q = Vec3::new(b.q[0][k], b.q[1][k], b.q[2][k]);
             let e = Vec3::new(b.e[0][k], b.e[1][k], b.e[2][k]);
             let n = Vec3::new(b.n[0][k], b.n[1][k], b.n[2][k]);
+            let distant = DISTANT && b.distant & (1 << k) != 0;
             let to = q - s.p;
             let d2 = to.length_squared();
             let d = d2.sqrt();
             let inv_d = 1.0 / d;
-            let wi = to * inv_d;
+            let wi = if distant { q } else { to * inv_d };
             let cos = -n.dot(wi);
             let cos = if b.two_sided[k] { cos.abs() } else { cos };
             let window = crate::light::range_window(d, b.inv_range[k]);
@@ -315,8 +327,18 @@ impl Receiver {
             let facing = wi.dot(s.ng) * wo_ng > 0.0 || self.transmits;
             let wi_local = s.to_local(wi);
             let f = self.bsdf.eval_lane(&self.at, wi_local);
-            let target = luminance(f * e) * (wi_local.z.abs() * a * (inv_d * inv_d));
-            let valid = d2 > 0.0 && d2.is_finite() && a > 0.0 && facing;
+            let cos_i = wi_local.z.abs();
+            let mut target = luminance(f * e) * (cos_i * a * (inv_d * inv_d));
+            let mut valid = d2 > 0.0 && d2.is_finite() && a > 0.0 && facing;
+            if DISTANT {
+                // As `receive` has it: `f |cos| L`, then its luminance times a geometry of 1.
+                target = if distant {
+                    luminance(f * cos_i * e)
+                } else {
+                    target
+                };
+                valid = if distant { facing } else { valid };
+            }
             *out = if valid && target > 0.0 && target.is_finite() {
                 target
             } else {

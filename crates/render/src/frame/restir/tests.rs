@@ -322,8 +322,9 @@ fn temporal_reuse_never_takes_a_sample_across_a_depth_edge() {
     }
 }
 
-/// `lit_world` with `n` random point lights besides its two emissive quads, and a spot and a
-/// directional light (not in lanes: evaluated one by one among the others).
+/// `lit_world` with `n` random point lights besides its two emissive quads, a spot (not in
+/// lanes: evaluated one by one among the others), a directional light and a random
+/// environment map with black texels.
 fn mixed_world(n: usize) -> World {
     use pathlight_scene::{PunctualKind, PunctualLight};
     let mut scene = lit_world().scene;
@@ -347,14 +348,30 @@ fn mixed_world(n: usize) -> World {
         intensity: Vec3::splat(3.0),
         range: None,
     });
+    let mut rng = Rng::new(3, 5);
+    let (w, h) = (16, 8);
+    scene.environment = Some(pathlight_scene::Environment {
+        name: "random".into(),
+        width: w,
+        height: h,
+        texels: (0..w * h)
+            .map(|i| match i % 7 {
+                3 => Vec3::ZERO,
+                _ => Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0,
+            })
+            .collect(),
+        rotation: 0.4,
+        intensity: 1.0,
+    });
     World::new(scene, LightSelection::Power)
 }
 
 #[test]
 fn candidates_in_lanes_are_the_reference() {
-    // In lanes (point lights and the quads' triangles in SIMD lanes, the spot and the
-    // directional light one by one) against one at a time: the same survivors, the same random
-    // numbers consumed, weights equal to rounding, for BSDFs with lanes (Lambertian,
+    // In lanes (point lights, the quads' triangles, the directional light and the
+    // environment in SIMD lanes, the spot one by one) against one at a time: the same
+    // survivors, the same random numbers consumed, weights equal to rounding, for BSDFs with
+    // lanes (Lambertian,
     // dielectric and metallic GGX) seen from above and at grazing angles.
     let world = mixed_world(40);
     let lights = &world.lights;
@@ -377,7 +394,7 @@ fn candidates_in_lanes_are_the_reference() {
     let mut pool = LightPool::default();
     pool.build(lights, 64, 5, 0);
     let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * a.abs().max(b.abs());
-    let (mut checked, mut scalar) = (0, 0);
+    let (mut checked, mut scalar, mut distant) = (0, 0, 0);
     for params in &bsdfs {
         let bsdf = Bsdf::new(params);
         assert!(bsdf.has_lanes());
@@ -409,9 +426,11 @@ fn candidates_in_lanes_are_the_reference() {
                         let next = a.next_f32();
                         assert_eq!((b.next_f32(), c.next_f32()), (next, next));
                         checked += usize::from(reference.weight > 0.0);
-                        scalar += usize::from(
-                            reference.weight > 0.0
-                                && lights.lane_light(&reference.sample).is_none(),
+                        let lane = lights.lane_light(&reference.sample);
+                        let lit = reference.weight > 0.0;
+                        scalar += usize::from(lit && lane.is_none());
+                        distant += usize::from(
+                            lit && matches!(lane, Some(crate::light::LaneLight::Distant { .. })),
                         );
                     }
                 }
@@ -423,6 +442,7 @@ fn candidates_in_lanes_are_the_reference() {
         scalar > 10,
         "{scalar} survivors on lights evaluated one by one"
     );
+    assert!(distant > 100, "{distant} survivors on distant lights");
     // The neighbours' targets in lanes are `target` to rounding.
     let rec = Receiver::with(
         base.surface,
@@ -431,6 +451,7 @@ fn candidates_in_lanes_are_the_reference() {
         false,
     );
     let mut rng = Rng::new(9, 9);
+    let mut distant_targets = 0;
     for n in 1..=LANES {
         let points: [LightPoint; LANES] = std::array::from_fn(|_| {
             let (p, _) = lights
@@ -446,6 +467,18 @@ fn candidates_in_lanes_are_the_reference() {
                 0.0
             };
             assert!(close(t[k], expected), "{k} of {n}: {} vs {expected}", t[k]);
+            // Distant lights' targets are the scalar arithmetic, bit for bit (frames with
+            // an environment do not change with the lanes).
+            if k < n
+                && matches!(
+                    lights.lane_light(&points[k]),
+                    Some(crate::light::LaneLight::Distant { .. })
+                )
+            {
+                assert_eq!(t[k].to_bits(), expected.to_bits(), "{k}: {:?}", points[k]);
+                distant_targets += 1;
+            }
         }
     }
+    assert!(distant_targets > 5, "{distant_targets} distant targets");
 }
