@@ -10,6 +10,10 @@ relMSE and flicker over the best preset's, and over the lowest of any preset.
 `--chosen` takes the defaults' row from a preset's instead of the `defaults` configuration's,
 for results made before the rule last changed: a preset's configuration renders the same
 frames as `preset = "auto"` choosing it (same seed, same settings).
+
+Configurations other than the defaults and the presets (experiments/060-composition.toml's
+compositions) get a second table: their relMSE @ ms and flicker, and their relMSE x ms over
+the defaults' and over the best preset's (issue 60, part 2: one composition against choosing).
 """
 
 import json
@@ -49,6 +53,7 @@ def main():
           "| defaults / best relMSE x ms preset: relMSE, flicker "
           "| defaults / any preset's lowest: relMSE, flicker |")
     print("|---|---|---|---|---|---|---|")
+    extra, names = [], []
     for results_file in sorted(out.glob("*/results.json")):
         results = json.loads(results_file.read_text())
         s = summary(results)
@@ -77,6 +82,25 @@ def main():
             f"{d['flicker'] / s[best]['flicker']:.2f}x | {d['relmse'] / lowest:.2f}x, "
             f"{d['flicker'] / calm:.2f}x |"
         )
+        others = [c for c in s if c != "defaults" and c not in PRESETS]
+        if others:
+            product = lambda c: s[c]["relmse"] * s[c]["ms"]
+            extra.append(
+                f"| {scene} | "
+                + " | ".join(
+                    f"{s[c]['relmse']:.3g} @ {s[c]['ms']:.0f} (fl. {s[c]['flicker']:.3g}): "
+                    f"{product(c) / product('defaults'):.2f}x, {product(c) / product(best):.2f}x"
+                    for c in others
+                )
+                + " |"
+            )
+            names = others
+    if extra:
+        print()
+        print("| scene | " + " | ".join(f"{c}: relMSE @ ms (flicker): relMSE x ms over the defaults', "
+                                       "over the best preset's" for c in names) + " |")
+        print("|---|" + "---|" * len(names))
+        print("\n".join(extra))
 
 
 if __name__ == "__main__":
