@@ -2,15 +2,19 @@
 //! choosing its render scale (temporal upsampling's, [`super::upsample`]) frame by frame.
 //!
 //! It follows the frames' times smoothed (an exponential mean, a fifth of each new frame), and
-//! steps the scale along [`STEPS`]: down when the smoothed time is over the target by more
-//! than 5%, to the first step at which the time predicted fits (at most every [`DOWN_AFTER`]
-//! frames, so a step's effect is seen first), up
-//! one step when the time predicted there (the smoothed time times the ratio of the pixel
-//! counts, which overstates it: part of a frame does not scale with its pixels) is under 85%
-//! of the target, at most every [`UP_AFTER`] frames. The band between the two and the longer
-//! wait upwards keep it from oscillating. A step is a new render size: the stages that keep
-//! per-pixel state at the render size start afresh, the output's history and the texture-space
-//! cache do not ([`super::state::Change::Scale`]).
+//! steps the scale along [`STEPS`]: down when the smoothed time is over the target, to the
+//! first step at which the time predicted is within [`HEADROOM`] of it (at most every
+//! [`DOWN_AFTER`] frames, so a step's effect is seen first); up one step when the time
+//! predicted there is within [`HEADROOM`] too, at most every [`UP_AFTER`] frames. The
+//! headroom leaves the frames that take longer than the mean (a new part of the scene coming
+//! into view, the host's own hiccups) under the target. Both predictions err on the safe
+//! side of a frame made of a part that scales with the render's pixels and a part that does
+//! not (the texture-space cache's cells, the upsampling at the output size): down, the
+//! smoothed time times the ratio of the scales (as if half of it did not scale), up, times
+//! the ratio of the pixel counts (as if all of it did). So a step up never lands over the
+//! target, which with the wait upwards keeps it from oscillating. A step is a new render
+//! size: the stages that keep per-pixel state at the render size start afresh, the output's
+//! history and the texture-space cache do not ([`super::state::Change::Scale`]).
 //!
 //! With `target_ms = 0` it does nothing, and the scale is the configuration's.
 
@@ -21,7 +25,9 @@ pub const TARGET_MS: std::ops::RangeInclusive<f32> = 0.0..=1000.0;
 /// The render scales the target steps through, largest first.
 pub const STEPS: [f32; 6] = [1.0, 0.85, 0.7, 0.6, 0.5, 0.4];
 /// Frames after a step before the next step down.
-pub const DOWN_AFTER: u32 = 3;
+pub const DOWN_AFTER: u32 = 2;
+/// The fraction of the target a step aims at (its time predicted).
+pub const HEADROOM: f64 = 0.9;
 /// Frames after a step before a step up.
 pub const UP_AFTER: u32 = 30;
 
@@ -59,24 +65,26 @@ impl Target {
         self.smoothed = Some(smoothed);
         self.since = self.since.saturating_add(1);
         let now = self.scale(ceiling);
-        let ratio = |to: usize| (STEPS[to].min(ceiling) / now).powi(2) as f64;
+        // The time predicted at step `to`: the scales' ratio to the power `p` (1 down, 2 up).
+        let ratio = |to: usize, p: i32| (STEPS[to].min(ceiling) / now).powi(p) as f64;
         let lower = self.step + 1 < STEPS.len();
         let higher = self.step > 0 && STEPS[self.step - 1].min(ceiling) > now;
-        let to = if lower && self.since >= DOWN_AFTER && smoothed > 1.05 * target {
+        let (to, p) = if lower && self.since >= DOWN_AFTER && smoothed > target {
             // As many steps as the prediction says it takes to fit, one at least.
-            (self.step + 1..STEPS.len())
-                .find(|&to| smoothed * ratio(to) <= target)
-                .unwrap_or(STEPS.len() - 1)
+            let to = (self.step + 1..STEPS.len())
+                .find(|&to| smoothed * ratio(to, 1) <= HEADROOM * target)
+                .unwrap_or(STEPS.len() - 1);
+            (to, 1)
         } else if higher
             && self.since >= UP_AFTER
-            && smoothed * ratio(self.step - 1) < 0.85 * target
+            && smoothed * ratio(self.step - 1, 2) <= HEADROOM * target
         {
-            self.step - 1
+            (self.step - 1, 2)
         } else {
             return None;
         };
         // The smoothed time carried to the new scale, as predicted.
-        self.smoothed = Some(smoothed * ratio(to));
+        self.smoothed = Some(smoothed * ratio(to, p));
         (self.step, self.since) = (to, 0);
         Some(self.scale(ceiling))
     }
@@ -103,9 +111,10 @@ mod tests {
     fn a_slow_frame_lowers_the_scale_and_a_fast_one_raises_it() {
         let mut t = Target::default();
         let (scale, _) = run(&mut t, 200, |s| 5.0 + 60.0 * (s * s) as f64);
-        // 5 + 60 s^2 <= 33 * 1.05 needs s^2 <= 0.494: 0.7 (34.4 ms, within 5%) is the
-        // largest step that fits.
-        assert_eq!(scale, 0.7);
+        // 5 + 60 s^2 <= 0.9 * 33 needs s^2 <= 0.41: 0.6 (26.6 ms) is the largest step that
+        // fits with the headroom (0.7 would take 34.4 ms). The way down overshoots to 0.4
+        // (65 ms at 1, predicted 26 ms at 0.4), the way up climbs back step by step.
+        assert_eq!(scale, 0.6);
         let (scale, _) = run(&mut t, 200, |s| 2.0 + 10.0 * (s * s) as f64);
         assert_eq!(scale, 1.0);
     }
@@ -132,8 +141,9 @@ mod tests {
             assert_eq!(t.after_frame(10.0, 33.0, 0.6), None);
         }
         assert_eq!(t.scale(0.6), 0.6);
-        // Slow: one step below it.
+        // Slow: below it, from the ceiling's time (the second slow frame: smoothed 42.4 ms,
+        // predicted 35.3 at 0.5 and 28.3 at 0.4).
         let slow = (0..10).find_map(|_| t.after_frame(100.0, 33.0, 0.6));
-        assert_eq!(slow, Some(0.5));
+        assert_eq!(slow, Some(0.4));
     }
 }
