@@ -33,7 +33,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use pathlight_denoise::taa::{bilinear_taps, compress, expand, rgb, ycocg};
+use pathlight_denoise::taa::{compress, expand, rgb, ycocg};
 
 use super::display::{View, ViewKind};
 use super::gbuffer::GBuffer;
@@ -374,6 +374,20 @@ impl Input<'_> {
     #[inline(always)]
     fn around(&self, rx: usize, ry: usize, mut f: impl FnMut(&Point)) {
         let (rw, rh) = self.render;
+        if rx >= 1 && ry >= 1 && rx + 1 < rw && ry + 1 < rh {
+            // (Inside: rows of three.)
+            for qy in ry - 1..ry + 2 {
+                let row: &[Point; 3] = (self.points[qy * rw + rx - 1..qy * rw + rx + 2])
+                    .try_into()
+                    .expect("three");
+                for p in row {
+                    if p.c.is_finite() {
+                        f(p);
+                    }
+                }
+            }
+            return;
+        }
         for qy in ry.saturating_sub(1)..(ry + 2).min(rh) {
             for qx in rx.saturating_sub(1)..(rx + 2).min(rw) {
                 let p = &self.points[qy * rw + qx];
@@ -400,10 +414,33 @@ fn fetch(history: &[Texel], p: Vec2, w: usize, h: usize) -> Option<Texel> {
     }
     let (x0, y0) = (p.x.floor(), p.y.floor());
     let (fx, fy) = (p.x - x0, p.y - y0);
+    // The 4x4 texels around, read once (those outside the image count no sample): the
+    // bilinear taps are the middle 2x2.
+    let (ix, iy) = (x0 as i64 - 1, y0 as i64 - 1);
+    let mut taps = [Texel::default(); 16];
+    if ix >= 0 && iy >= 0 && ix + 4 <= w as i64 && iy + 4 <= h as i64 {
+        for (j, row) in taps.chunks_exact_mut(4).enumerate() {
+            let start = (iy as usize + j) * w + ix as usize;
+            row.copy_from_slice(&history[start..start + 4]);
+        }
+    } else {
+        for (k, tap) in taps.iter_mut().enumerate() {
+            let (qx, qy) = (ix + (k % 4) as i64, iy + (k / 4) as i64);
+            if qx >= 0 && qy >= 0 && qx < w as i64 && qy < h as i64 {
+                *tap = history[qy as usize * w + qx as usize];
+            }
+        }
+    }
     let (mut colour, mut count, mut weight) = (Vec3::ZERO, 0.0f32, 0.0f32);
-    for (qx, qy, t) in bilinear_taps(p, w, h) {
-        let old = history[qy * w + qx];
-        if old.count > 0.0 {
+    let bilinear = [
+        (5, (1.0 - fx) * (1.0 - fy)),
+        (6, fx * (1.0 - fy)),
+        (9, (1.0 - fx) * fy),
+        (10, fx * fy),
+    ];
+    for (k, t) in bilinear {
+        let old = taps[k];
+        if t > 0.0 && old.count > 0.0 {
             (colour, count, weight) = (colour + old.colour * t, count + old.count * t, weight + t);
         }
     }
@@ -416,14 +453,8 @@ fn fetch(history: &[Texel], p: Vec2, w: usize, h: usize) -> Option<Texel> {
     };
     let (kx, ky) = (catmull_rom(fx), catmull_rom(fy));
     let (mut sharp, mut total) = (Vec3::ZERO, 0.0f32);
-    for (j, wy) in ky.iter().enumerate() {
-        let qy = y0 as i64 - 1 + j as i64;
-        for (i, wx) in kx.iter().enumerate() {
-            let qx = x0 as i64 - 1 + i as i64;
-            if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 {
-                continue;
-            }
-            let old = history[qy as usize * w + qx as usize];
+    for (row, wy) in taps.chunks_exact(4).zip(ky) {
+        for (old, wx) in row.iter().zip(kx) {
             if old.count > 0.0 {
                 (sharp, total) = (sharp + old.colour * (wx * wy), total + wx * wy);
             }
@@ -473,5 +504,86 @@ impl Stage for Upsample {
 
     fn bytes(&self) -> usize {
         (self.history.capacity() + self.next.capacity()) * std::mem::size_of::<Texel>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pathlight_core::rng::Rng;
+
+    /// `fetch` reads the 4x4 texels once, whole rows where they are inside the image and
+    /// one by one at its borders: a constant history gives itself back wherever its taps land,
+    /// and a random one with holes gives at its borders what the same history padded with
+    /// empty texels gives inside (the border read is the inside read with no sample outside).
+    #[test]
+    fn fetch_reads_the_same_texels_inside_and_at_the_borders() {
+        let (w, h) = (7, 5);
+        let constant = vec![
+            Texel {
+                colour: Vec3::new(0.3, 0.5, 0.7),
+                count: 4.0,
+            };
+            w * h
+        ];
+        let mut rng = Rng::new(3, 4);
+        for _ in 0..500 {
+            let p = Vec2::new(rng.next_f32() * 9.0 - 1.5, rng.next_f32() * 7.0 - 1.5);
+            match fetch(&constant, p, w, h) {
+                Some(t) => {
+                    assert!(
+                        (t.colour - constant[0].colour).abs().max_element() < 1e-5,
+                        "{p}"
+                    );
+                    assert!((t.count - 4.0).abs() < 1e-4, "{p}: {t:?}");
+                }
+                // The taps inside the image weigh less than 1e-3: the point is within that of
+                // a pixel's width outside the image's first or last pixel centre.
+                None => assert!(
+                    p.x < -0.99 || p.y < -0.99 || p.x > w as f32 - 0.01 || p.y > h as f32 - 0.01,
+                    "{p}"
+                ),
+            }
+        }
+        // A random history with holes, embedded in a larger image: a point's fetch reads the
+        // same texels there (all inside) as in the small one (at its borders, outside texels
+        // holding no sample).
+        let mut small = vec![Texel::default(); w * h];
+        for t in &mut small {
+            if rng.next_f32() < 0.8 {
+                *t = Texel {
+                    colour: Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()),
+                    count: 1.0 + rng.next_f32() * 8.0,
+                };
+            }
+        }
+        let (big_w, big_h, pad) = (w + 6, h + 6, 3);
+        let mut big = vec![Texel::default(); big_w * big_h];
+        for y in 0..h {
+            for x in 0..w {
+                big[(y + pad) * big_w + x + pad] = small[y * w + x];
+            }
+        }
+        for _ in 0..500 {
+            let p = Vec2::new(
+                rng.next_f32() * (w - 1) as f32,
+                rng.next_f32() * (h - 1) as f32,
+            );
+            // (The shifted point's fraction rounds a little differently.)
+            let inside = fetch(&big, p + Vec2::splat(pad as f32), big_w, big_h);
+            match (fetch(&small, p, w, h), inside) {
+                (Some(a), Some(b)) => {
+                    assert!(
+                        (a.colour - b.colour).abs().max_element() < 1e-4,
+                        "{p}: {a:?} {b:?}"
+                    );
+                    assert!(
+                        (a.count - b.count).abs() < 1e-3 * b.count,
+                        "{p}: {a:?} {b:?}"
+                    );
+                }
+                (a, b) => assert_eq!(a, b, "{p}"),
+            }
+        }
     }
 }
