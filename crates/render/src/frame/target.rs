@@ -22,8 +22,19 @@
 /// spans.
 pub const TARGET_MS: std::ops::RangeInclusive<f32> = 0.0..=1000.0;
 
-/// The render scales the target steps through, largest first.
-pub const STEPS: [f32; 6] = [1.0, 0.85, 0.7, 0.6, 0.5, 0.4];
+/// The render scales the target steps through, largest first, down to upsampling's smallest
+/// (a frame whose part that does not shrink with its pixels is near the target needs the
+/// last steps: the interior at 640x360, whose upsampling pass alone takes a third of it).
+pub const STEPS: [f32; 8] = [
+    1.0,
+    0.85,
+    0.7,
+    0.6,
+    0.5,
+    0.4,
+    0.3,
+    super::upsample::MIN_SCALE,
+];
 /// Frames after a step before the next step down.
 pub const DOWN_AFTER: u32 = 2;
 /// The fraction of the target a step aims at (its time predicted).
