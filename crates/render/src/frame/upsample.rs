@@ -284,20 +284,18 @@ impl Input<'_> {
         // them weighs as a white sample, not its radiance's worth, while the view moves).
         let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
         if moved {
-            let mut max = Vec3::ZERO;
             self.around(rx, ry, |p| {
                 let d = (p.film - centre).length_squared();
                 let t = (1.0 - d * (1.0 / (RADIUS * RADIUS))).max(0.0);
                 (sum, weight) = (sum + p.compressed * (t * t), weight + t * t);
-                if t > 0.0 {
-                    max = max.max(p.c);
-                }
             });
             let (old, count) = self.moved(history, centre, (rx, ry), (sum, weight), cap, gamma);
             let total = count + weight;
             if total > 0.0 {
                 let blend = (old * count + sum) / total;
-                let max = max.max(self.boxes[ry * rw + rx].max);
+                // The largest of the samples around (the render pixel's 3x3, whose samples
+                // the bump weighs are some of).
+                let max = self.boxes[ry * rw + rx].max;
                 return Texel {
                     colour: expand(blend).clamp(Vec3::ZERO, max),
                     count: total,
