@@ -11,8 +11,9 @@
 //! side of a frame made of a part that scales with the render's pixels and a part that does
 //! not (the texture-space cache's cells, the upsampling at the output size): down, the
 //! smoothed time times the ratio of the scales (as if half of it did not scale), up, times
-//! the ratio of the pixel counts (as if all of it did). So a step up never lands over the
-//! target, which with the wait upwards keeps it from oscillating. A step is a new render
+//! the ratio of the pixel counts (as if all of it did). So a step up does not land over the
+//! target (unless the frame's cost itself changes), which with the wait upwards keeps it
+//! from oscillating. A step is a new render
 //! size: the stages that keep per-pixel state at the render size start afresh, the output's
 //! history and the texture-space cache do not ([`super::state::Change::Scale`]).
 //!
