@@ -168,7 +168,6 @@ impl Upsample {
         self.change = None;
         let (rw, rh) = (gbuffer.width as usize, gbuffer.height as usize);
         let to_output = Vec2::new(width as f32 / rw as f32, height as f32 / rh as f32);
-        let boxes = boxes(samples, rw, rh);
         let points: Vec<Point> = (samples.par_iter().zip(&gbuffer.pixels))
             .map(|(c, g)| Point {
                 c: *c,
@@ -176,6 +175,7 @@ impl Upsample {
                 film: g.film * to_output,
             })
             .collect();
+        let boxes = boxes(&points, rw, rh);
         let input = Input {
             points: &points,
             gbuffer,
@@ -207,8 +207,8 @@ impl Upsample {
 /// Each render pixel's 3x3 neighbourhood's mean and standard deviation in compressed YCoCg
 /// (the box a moved history is clamped to), and its largest value per channel in linear
 /// light (the box's corners, expanded back, may lie far above every sample near a light).
-fn boxes(samples: &[Vec3], w: usize, h: usize) -> Vec<Neighbourhood> {
-    let values: Vec<Vec3> = samples.par_iter().map(|c| ycocg(compress(*c))).collect();
+fn boxes(points: &[Point], w: usize, h: usize) -> Vec<Neighbourhood> {
+    let values: Vec<Vec3> = points.par_iter().map(|p| ycocg(p.compressed)).collect();
     (0..w * h)
         .into_par_iter()
         .map(|i| {
@@ -220,7 +220,7 @@ fn boxes(samples: &[Vec3], w: usize, h: usize) -> Vec<Neighbourhood> {
                     let v = values[qy * w + qx];
                     if v.is_finite() {
                         (sum, square, n) = (sum + v, square + v * v, n + 1.0);
-                        max = max.max(samples[qy * w + qx]);
+                        max = max.max(points[qy * w + qx].c);
                     }
                 }
             }
