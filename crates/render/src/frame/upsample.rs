@@ -29,7 +29,7 @@
 //! history is the temporal filter), and the frame's other views are shown at the output size
 //! by their nearest render pixel.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -106,8 +106,10 @@ pub fn render_size(scale: f32, width: u32, height: u32) -> (u32, u32) {
     (side(width), side(height))
 }
 
-/// One output pixel's history: the mean of its samples and how many samples it weighs.
+/// One output pixel's history: the mean of its samples and how many samples it weighs (laid
+/// out as one SIMD register, which [`fetch`] reads at once).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[repr(C, align(16))]
 struct Texel {
     colour: Vec3,
     count: f32,
@@ -170,8 +172,8 @@ impl Upsample {
         let to_output = Vec2::new(width as f32 / rw as f32, height as f32 / rh as f32);
         let points: Vec<Point> = (samples.par_iter().zip(&gbuffer.pixels))
             .map(|(c, g)| Point {
-                c: *c,
-                compressed: compress(*c),
+                c: (*c).into(),
+                compressed: compress(*c).into(),
                 film: g.film * to_output,
             })
             .collect();
@@ -208,13 +210,15 @@ impl Upsample {
 /// (the box a moved history is clamped to), and its largest value per channel in linear
 /// light (the box's corners, expanded back, may lie far above every sample near a light).
 fn boxes(points: &[Point], w: usize, h: usize) -> Vec<Neighbourhood> {
-    let values: Vec<Vec3> = points.par_iter().map(|p| ycocg(p.compressed)).collect();
+    let values: Vec<Vec3> = (points.par_iter())
+        .map(|p| ycocg(p.compressed.into()))
+        .collect();
     (0..w * h)
         .into_par_iter()
         .map(|i| {
             let (x, y) = (i % w, i / w);
             let (mut sum, mut square, mut n) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
-            let mut max = Vec3::ZERO;
+            let mut max = Vec3A::ZERO;
             for qy in y.saturating_sub(1)..(y + 2).min(h) {
                 for qx in x.saturating_sub(1)..(x + 2).min(w) {
                     let v = values[qy * w + qx];
@@ -226,17 +230,21 @@ fn boxes(points: &[Point], w: usize, h: usize) -> Vec<Neighbourhood> {
             }
             let mean = sum / n.max(1.0);
             let sigma = (square / n.max(1.0) - mean * mean).max(Vec3::ZERO).sqrt();
-            Neighbourhood { mean, sigma, max }
+            Neighbourhood {
+                mean,
+                sigma,
+                max: max.into(),
+            }
         })
         .collect()
 }
 
 /// A render pixel's sample: its value, compressed by its luminance, and its film position in
-/// output pixels.
+/// output pixels (the values in SIMD registers' layout: one operation a sum).
 #[derive(Debug, Clone, Copy)]
 struct Point {
-    c: Vec3,
-    compressed: Vec3,
+    c: Vec3A,
+    compressed: Vec3A,
     film: Vec2,
 }
 
@@ -282,13 +290,14 @@ impl Input<'_> {
         // after a move, every sample around by its distance, so every pixel has some, and
         // in compressed light, as the temporal antialiasing filter blends (a firefly among
         // them weighs as a white sample, not its radiance's worth, while the view moves).
-        let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+        let (mut sum, mut weight) = (Vec3A::ZERO, 0.0f32);
         if moved {
             self.around(rx, ry, |p| {
                 let d = (p.film - centre).length_squared();
                 let t = (1.0 - d * (1.0 / (RADIUS * RADIUS))).max(0.0);
                 (sum, weight) = (sum + p.compressed * (t * t), weight + t * t);
             });
+            let sum = Vec3::from(sum);
             let (old, count) = self.moved(history, centre, (rx, ry), (sum, weight), cap, gamma);
             let total = count + weight;
             if total > 0.0 {
@@ -320,19 +329,19 @@ impl Input<'_> {
         let total = old.count + weight;
         if total > 0.0 {
             return Texel {
-                colour: (old.colour * old.count + sum) / total,
+                colour: (old.colour * old.count + Vec3::from(sum)) / total,
                 count: total,
             };
         }
         // Nothing here yet (still, and no sample landed): the samples around, nearer ones
         // weighing more, counting as none (the first sample replaces them).
-        let (mut near, mut weight) = (Vec3::ZERO, 0.0f32);
+        let (mut near, mut weight) = (Vec3A::ZERO, 0.0f32);
         self.around(rx, ry, |p| {
             let w = 1.0 / (1.0 + (p.film - centre).length_squared());
             (near, weight) = (near + p.c * w, weight + w);
         });
         Texel {
-            colour: near / weight.max(1e-12),
+            colour: (near / weight.max(1e-12)).into(),
             count: 0.0,
         }
     }
@@ -412,24 +421,28 @@ fn fetch(history: &[Texel], p: Vec2, w: usize, h: usize) -> Option<Texel> {
     }
     let (x0, y0) = (p.x.floor(), p.y.floor());
     let (fx, fy) = (p.x - x0, p.y - y0);
-    // The 4x4 texels around, read once (those outside the image count no sample): the
-    // bilinear taps are the middle 2x2.
+    // The 4x4 texels around, read once (those outside the image count no sample), each its
+    // colour and count in one SIMD register: the bilinear taps are the middle 2x2.
     let (ix, iy) = (x0 as i64 - 1, y0 as i64 - 1);
-    let mut taps = [Texel::default(); 16];
+    let lanes = |t: &Texel| t.colour.extend(t.count);
+    let mut taps = [Vec4::ZERO; 16];
     if ix >= 0 && iy >= 0 && ix + 4 <= w as i64 && iy + 4 <= h as i64 {
         for (j, row) in taps.chunks_exact_mut(4).enumerate() {
             let start = (iy as usize + j) * w + ix as usize;
-            row.copy_from_slice(&history[start..start + 4]);
+            for (tap, t) in row.iter_mut().zip(&history[start..start + 4]) {
+                *tap = lanes(t);
+            }
         }
     } else {
         for (k, tap) in taps.iter_mut().enumerate() {
             let (qx, qy) = (ix + (k % 4) as i64, iy + (k / 4) as i64);
             if qx >= 0 && qy >= 0 && qx < w as i64 && qy < h as i64 {
-                *tap = history[qy as usize * w + qx as usize];
+                *tap = lanes(&history[qy as usize * w + qx as usize]);
             }
         }
     }
-    let (mut colour, mut count, mut weight) = (Vec3::ZERO, 0.0f32, 0.0f32);
+    // (Colour and count summed together, lane by lane: the same sums as apart.)
+    let (mut sum, mut weight) = (Vec4::ZERO, 0.0f32);
     let bilinear = [
         (5, (1.0 - fx) * (1.0 - fy)),
         (6, fx * (1.0 - fy)),
@@ -438,32 +451,29 @@ fn fetch(history: &[Texel], p: Vec2, w: usize, h: usize) -> Option<Texel> {
     ];
     for (k, t) in bilinear {
         let old = taps[k];
-        if t > 0.0 && old.count > 0.0 {
-            (colour, count, weight) = (colour + old.colour * t, count + old.count * t, weight + t);
+        if t > 0.0 && old.w > 0.0 {
+            (sum, weight) = (sum + old * t, weight + t);
         }
     }
     if weight < 1e-3 {
         return None;
     }
-    let bilinear = Texel {
-        colour: colour / weight,
-        count: count / weight,
-    };
+    let bilinear = sum / weight;
     let (kx, ky) = (catmull_rom(fx), catmull_rom(fy));
-    let (mut sharp, mut total) = (Vec3::ZERO, 0.0f32);
+    let (mut sharp, mut total) = (Vec4::ZERO, 0.0f32);
     for (row, wy) in taps.chunks_exact(4).zip(ky) {
         for (old, wx) in row.iter().zip(kx) {
-            if old.count > 0.0 {
-                (sharp, total) = (sharp + old.colour * (wx * wy), total + wx * wy);
+            if old.w > 0.0 {
+                (sharp, total) = (sharp + *old * (wx * wy), total + wx * wy);
             }
         }
     }
-    Some(match total > 0.5 {
-        true => Texel {
-            colour: (sharp / total).max(Vec3::ZERO),
-            ..bilinear
+    Some(Texel {
+        colour: match total > 0.5 {
+            true => (sharp.xyz() / total).max(Vec3::ZERO),
+            false => bilinear.xyz(),
         },
-        false => bilinear,
+        count: bilinear.w,
     })
 }
 
