@@ -347,8 +347,10 @@ impl ConfigArgs {
     /// The frame commands' configuration for a scene lit by `lights`: with neither --config,
     /// --plain nor a technique's flag ([`technique_flags`](Self::technique_flags)), or with a
     /// --config file whose `preset` is `"auto"`, the preset the rule chooses
-    /// ([`preset::choose`], returned with its reason); else the plain pipeline or the file's
-    /// `preset`; then the file's settings and the flags ([`apply`](Self::apply)). The presets
+    /// ([`preset::choose`], returned with its reason) holding the default frame-time target
+    /// ([`DEFAULT_MS`](pathlight_render::frame::target::DEFAULT_MS)); else the plain pipeline
+    /// or the file's `preset`, without a target; then the file's settings and the flags
+    /// ([`apply`](Self::apply)). The presets
     /// leave the light selection as it is, so `lights` stay those of the configuration.
     /// Checked ([`check_realtime`]); the choice is printed with its reason.
     pub fn for_scene(&self, lights: &Lights) -> Result<(Config, Option<Choice>)> {
@@ -363,8 +365,11 @@ impl ConfigArgs {
                 Some(name) => name == preset::AUTO,
             };
         let (base, choice) = if auto {
+            // The defaults hold a frame rate: the chosen preset at the default target.
             let choice = preset::choose(lights);
-            (choice.preset.config(&Config::realtime()), Some(choice))
+            let mut view = Config::realtime();
+            view.frame.target_ms = pathlight_render::frame::target::DEFAULT_MS;
+            (choice.preset.config(&view), Some(choice))
         } else {
             let preset = match named {
                 None => Preset::Plain,
@@ -388,6 +393,12 @@ impl ConfigArgs {
                 "preset: {} ({}; --plain for none)",
                 c.preset.name(),
                 c.reason
+            );
+        }
+        if config.frame.target_ms > 0.0 {
+            eprintln!(
+                "frame-time target: {} ms (the render scale adapts; --target-ms 0 for none)",
+                config.frame.target_ms
             );
         }
         Ok((config, choice))

@@ -120,7 +120,11 @@ impl Report<'_> {
             "environment_name": environment.map(|e| e.name.clone()),
             "environment_size": environment.map(|e| [e.width, e.height]),
             "sun": self.sun.map(|(texels, share)| json!({"texels": texels, "share": share})),
-            "preset": json!({"name": self.choice.preset.name(), "reason": self.choice.reason}),
+            "preset": json!({
+                "name": self.choice.preset.name(),
+                "reason": self.choice.reason,
+                "target_ms": pathlight_render::frame::target::DEFAULT_MS,
+            }),
             "bounds": bounds,
             "load_ms": self.load_ms,
             "peak_rss_bytes": self.peak_rss_bytes,
@@ -192,9 +196,11 @@ impl Report<'_> {
         rows.push((
             "preset",
             format!(
-                "{} ({}), what view, play and bench frame run without --config or --plain",
+                "{} ({}) holding {} ms a frame, what view, play and bench frame run without \
+                 --config or --plain",
                 self.choice.preset.name(),
-                self.choice.reason
+                self.choice.reason,
+                pathlight_render::frame::target::DEFAULT_MS
             ),
         ));
         if s.bounds.is_empty() {

@@ -30,9 +30,12 @@ fn frames(dir: &Path) -> Vec<Vec<u8>> {
 fn play_is_deterministic_for_a_fixed_seed() {
     let dir = temp_dir("determinism");
     let (a, b, c) = (dir.join("a"), dir.join("b"), dir.join("c"));
-    play(&a, &["--seed", "3", "--threads", "2"]);
-    play(&b, &["--seed", "3", "--threads", "1"]);
-    play(&c, &["--seed", "4"]);
+    // Without a configuration the frame-time target adapts the render scale to the machine's
+    // speed; off, the frames are the settings' alone.
+    let off = ["--target-ms", "0"];
+    play(&a, &[&["--seed", "3", "--threads", "2"][..], &off].concat());
+    play(&b, &[&["--seed", "3", "--threads", "1"][..], &off].concat());
+    play(&c, &[&["--seed", "4"][..], &off].concat());
     assert_eq!(frames(&a), frames(&b), "same seed, different thread counts");
     assert_ne!(frames(&a), frames(&c), "the seed changes nothing");
     // Consecutive frames of the orbit differ (the camera moves).
@@ -357,9 +360,13 @@ fn play_chooses_a_preset_unless_told_otherwise() {
     let reason = auto["preset"]["reason"].as_str().unwrap();
     assert!(reason.contains("1 light source"), "{reason}");
     assert!(cache(&auto));
+    // The defaults hold 33 ms a frame; a flag can turn that off.
+    assert_eq!(auto["target"]["target_ms"], 33.0, "{auto}");
+    assert!(report(&["--target-ms", "0"])["target"].is_null());
     for extra in [&["--plain"][..], &["--reprojection"]] {
         let v = report(extra);
         assert!(v["preset"].is_null() && !cache(&v), "{extra:?}: {v}");
+        assert!(v["target"].is_null(), "{extra:?}: {v}");
     }
     let file = |name: &str, text: &str| {
         let f = dir.join(name);

@@ -163,8 +163,8 @@ impl Config {
 
     /// A preset (a TOML text of any subset of the fields) as a whole configuration: the
     /// defaults with the fields it sets, and this configuration's own view of the scene kept
-    /// (its camera, image size, display settings and seed: where the user is looking and how,
-    /// not how the frame is made). Applied after another, a preset gives what it gives alone:
+    /// (its camera, image size, display settings, seed and frame-time target: where the user
+    /// is looking and how, not how the frame is made). Applied after another, a preset gives what it gives alone:
     /// nothing of the first remains. Not checked: see [`validate`](Self::validate).
     pub fn with_preset(&self, text: &str) -> Result<Config, String> {
         let mut c = Config::default().with_toml(text)?;
@@ -180,12 +180,14 @@ impl Config {
         p == *self
     }
 
-    /// Takes `from`'s view of the scene: camera, image size, display and seed.
+    /// Takes `from`'s view of the scene: camera, image size, display, seed and frame-time
+    /// target (the frame rate the user asked for, which a preset does not choose).
     fn keep_view(&mut self, from: &Config) {
         self.camera = from.camera.clone();
         (self.width, self.height) = (from.width, from.height);
         self.display = from.display.clone();
         self.seed = from.seed;
+        self.frame.target_ms = from.frame.target_ms;
     }
 
     /// This configuration with the fields a TOML text sets (any subset of the fields; those

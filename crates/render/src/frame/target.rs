@@ -23,6 +23,12 @@
 /// spans.
 pub const TARGET_MS: std::ops::RangeInclusive<f32> = 0.0..=1000.0;
 
+/// The target the real-time commands (`view`, `play`, `bench frame`) hold when they run the
+/// preset the scene's lights choose (no configuration given): 30 frames a second. A
+/// configuration file, `--plain` or a technique's flag runs as written (`target_ms` 0 unless it
+/// sets one), and `--target-ms 0` turns it off.
+pub const DEFAULT_MS: f32 = 33.0;
+
 /// The render scales the target steps through, largest first, down to upsampling's smallest
 /// (a frame whose part that does not shrink with its pixels is near the target needs the
 /// last steps: the interior at 640x360, whose upsampling pass alone takes a third of it).
