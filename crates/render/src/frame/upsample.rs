@@ -189,12 +189,17 @@ impl Upsample {
         let history = &self.history;
         let cap = 1.0 / config.alpha - 1.0;
         self.next.resize(width * height, Texel::default());
+        // (Each output column's render column, the same for every row.)
+        let columns: Vec<usize> = (0..width)
+            .map(|x| render_index(x, to_output.x, rw))
+            .collect();
         self.next
             .par_chunks_mut(width)
             .enumerate()
             .for_each(|(y, row)| {
-                for (x, out) in row.iter_mut().enumerate() {
-                    *out = input.pixel(history, (x, y), moved, cap, config.gamma);
+                let ry = render_index(y, to_output.y, rh);
+                for ((x, out), &rx) in row.iter_mut().enumerate().zip(&columns) {
+                    *out = input.pixel(history, (x, y), (rx, ry), moved, (cap, config.gamma));
                 }
             });
         std::mem::swap(&mut self.history, &mut self.next);
@@ -271,20 +276,18 @@ struct Input<'a> {
 impl Input<'_> {
     /// Output pixel `at`'s new history, from `history` (the camera `moved` since it was made;
     /// a moved history weighs at most `cap` times this frame's samples, clamped to its box
-    /// widened by `gamma`).
+    /// widened by `gamma`); (`rx`, `ry`) is the render pixel that holds its centre
+    /// ([`render_index`] of each axis).
     fn pixel(
         &self,
         history: &[Texel],
         at: (usize, usize),
+        (rx, ry): (usize, usize),
         moved: bool,
-        cap: f32,
-        gamma: f32,
+        (cap, gamma): (f32, f32),
     ) -> Texel {
         let (rw, rh) = self.render;
         let centre = Vec2::new(at.0 as f32 + 0.5, at.1 as f32 + 0.5);
-        // The render pixel that holds the output pixel's centre.
-        let r = centre / self.to_output;
-        let (rx, ry) = ((r.x as usize).min(rw - 1), (r.y as usize).min(rh - 1));
         // This frame's samples: while the camera stays, those that landed in the pixel (a box,
         // the output's own pixel filter: a still view converges to the output-size image);
         // after a move, every sample around by its distance, so every pixel has some, and
@@ -404,6 +407,12 @@ impl Input<'_> {
             }
         }
     }
+}
+
+/// The render pixel index (of `n` along an axis) that holds output pixel `i`'s centre, at
+/// `to_output` output pixels per render pixel.
+fn render_index(i: usize, to_output: f32, n: usize) -> usize {
+    (((i as f32 + 0.5) / to_output) as usize).min(n - 1)
 }
 
 /// After a move, a sample weighs `(1 - d^2 / RADIUS^2)^2` at `d` output pixels from a pixel's
