@@ -350,8 +350,8 @@ impl ConfigArgs {
     /// ([`preset::choose`], returned with its reason) holding the default frame-time target
     /// ([`DEFAULT_MS`](pathlight_render::frame::target::DEFAULT_MS)); else the plain pipeline
     /// or the file's `preset`, without a target; then the file's settings and the flags
-    /// ([`apply`](Self::apply)). The presets
-    /// leave the light selection as it is, so `lights` stay those of the configuration.
+    /// ([`apply`](Self::apply)). The presets leave the light selection as it is, so `lights`
+    /// stay those of the configuration.
     /// Checked ([`check_realtime`]); the choice is printed with its reason.
     pub fn for_scene(&self, lights: &Lights) -> Result<(Config, Option<Choice>)> {
         let file = match &self.config {

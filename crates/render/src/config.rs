@@ -164,8 +164,9 @@ impl Config {
     /// A preset (a TOML text of any subset of the fields) as a whole configuration: the
     /// defaults with the fields it sets, and this configuration's own view of the scene kept
     /// (its camera, image size, display settings, seed and frame-time target: where the user
-    /// is looking and how, not how the frame is made). Applied after another, a preset gives what it gives alone:
-    /// nothing of the first remains. Not checked: see [`validate`](Self::validate).
+    /// is looking and how, not how the frame is made). Applied after another, a preset gives
+    /// what it gives alone: nothing of the first remains. Not checked: see
+    /// [`validate`](Self::validate).
     pub fn with_preset(&self, text: &str) -> Result<Config, String> {
         let mut c = Config::default().with_toml(text)?;
         c.keep_view(self);
