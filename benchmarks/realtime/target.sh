@@ -39,7 +39,8 @@ d = json.loads(sys.stdin.read())
 t = d.get('target') or {}
 print('$name', (d.get('preset') or {}).get('name'), 'over', t.get('frames_over_target'),
       'of', t.get('frames'), 'p95', t.get('p95_ms') and round(t['p95_ms'], 1),
-      'scale', t.get('scale'), 'lowest', t.get('lowest_scale'),
+      'scale', t.get('scale') and round(t['scale'], 2),
+      'lowest', t.get('lowest_scale') and round(t['lowest_scale'], 2),
       'median', round(d['ms_per_frame'], 1),
       'upsample', round(d['passes'].get('upsample', 0), 1))"
 done
