@@ -51,6 +51,15 @@ fn play_is_deterministic_for_a_fixed_seed() {
     std::fs::write(&empty, "").unwrap();
     play(&q, &["--seed", "3", "--config", s(&empty)]);
     assert_eq!(frames(&p), frames(&q), "--plain is not the plain pipeline");
+    // The defaults' frame-time target off: the chosen preset's frames, bit for bit those of a
+    // configuration file that names it (which holds no target).
+    let (named, r) = (dir.join("named.toml"), dir.join("r"));
+    std::fs::write(&named, "preset = \"realtime-sun\"\n").unwrap();
+    play(
+        &r,
+        &["--seed", "3", "--threads", "2", "--config", s(&named)],
+    );
+    assert_eq!(frames(&r), fa, "--target-ms 0 is not the preset's frames");
 
     // Timings per frame and per pass.
     let json: serde_json::Value =
